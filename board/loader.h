@@ -1,0 +1,39 @@
+// Loads and validates a board (suit) file. Every problem is reported, not just the first, each
+// with the file, line, column and key it concerns and what was expected there.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "board/board.h"
+#include "board/bus_budget.h"
+
+namespace caphub::board {
+
+struct Diagnostic {
+    SourceLocation where;
+    std::string key;  // dotted path in the file, e.g. "sensor[3].odr_hz"
+    std::string message;
+
+    // "board/suit.toml:42:10: sensor[3].odr_hz: ..."
+    std::string str() const;
+};
+
+struct LoadResult {
+    std::optional<Board> board;  // set when there are no errors
+    std::vector<BusLoad> loads;  // the bus budget, also computed for a plan that failed it
+    std::vector<Diagnostic> errors;
+    std::vector<Diagnostic> warnings;
+
+    bool ok() const { return board.has_value(); }
+};
+
+LoadResult loadBoardFile(const std::filesystem::path& path);
+
+// The same from text; sourceName stands for the file name in diagnostics.
+LoadResult loadBoardText(std::string_view text, const std::string& sourceName);
+
+}  // namespace caphub::board

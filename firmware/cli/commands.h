@@ -1,0 +1,11 @@
+// Registration of the caphub subcommands; each sets the exit code through the reference.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace caphub::firmware {
+
+void addBoardsCommand(CLI::App& app, int& exitCode);
+void addInfoCommands(CLI::App& app, int& exitCode);
+
+}  // namespace caphub::firmware

@@ -1,0 +1,46 @@
+#include "firmware/cli/data_dir.h"
+
+#include <cstdlib>
+
+#include "firmware/version.h"
+
+namespace caphub::firmware {
+
+namespace fs = std::filesystem;
+
+std::vector<fs::path> dataDirCandidates() {
+    std::vector<fs::path> out;
+    if (const char* env = std::getenv("CAPHUB_DATA_DIR"); env != nullptr && *env != '\0') {
+        out.emplace_back(env);
+    }
+    out.emplace_back(kInstallDataDir);
+    out.emplace_back(kSourceDir);
+    return out;
+}
+
+std::optional<fs::path> dataDir() {
+    for (const auto& d : dataDirCandidates()) {
+        std::error_code ec;
+        if (fs::is_directory(d / "board", ec)) {
+            return d;
+        }
+    }
+    return std::nullopt;
+}
+
+fs::path resolveBoardFile(const std::string& nameOrPath) {
+    const fs::path given(nameOrPath);
+    std::error_code ec;
+    if (fs::exists(given, ec) || given.has_parent_path() || given.extension() == ".toml") {
+        return given;
+    }
+    if (auto d = dataDir()) {
+        const fs::path shipped = *d / "board" / (nameOrPath + ".toml");
+        if (fs::exists(shipped, ec)) {
+            return shipped;
+        }
+    }
+    return given;
+}
+
+}  // namespace caphub::firmware

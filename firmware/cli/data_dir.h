@@ -1,0 +1,20 @@
+// Where caphub finds its shipped data (board files, meshes): $CAPHUB_DATA_DIR, the install
+// prefix's share/caphub, or the source tree it was built from.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace caphub::firmware {
+
+std::vector<std::filesystem::path> dataDirCandidates();
+
+// The first candidate that holds a board/ folder.
+std::optional<std::filesystem::path> dataDir();
+
+// A board given as a path, or as the name of a shipped board ("sim-suit").
+std::filesystem::path resolveBoardFile(const std::string& nameOrPath);
+
+}  // namespace caphub::firmware

@@ -1,0 +1,378 @@
+// The board file loader: every class of mistake is reported with the file, the line and the key,
+// and a good file becomes a Board.
+#include "board/loader.h"
+
+#include <algorithm>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace caphub::board {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A valid two-sensor board; tests change one thing in it.
+const std::string kHeader = R"(schema = 1
+name = "test"
+
+[[bus]]
+name = "i2c1"
+type = "i2c"
+device = "/dev/i2c-1"
+clock_hz = 400000
+
+[[mux]]
+name = "mux0"
+bus = "i2c1"
+address = 0x70
+)";
+
+std::string sensor(const std::string& name, const std::string& segment, int channel, int address,
+                   const std::string& extra = "") {
+    return "\n[[sensor]]\nname = \"" + name + "\"\nsegment = \"" + segment +
+           "\"\nchip = \"icm20948\"\nbus = \"i2c1\"\nmux = \"mux0\"\nchannel = " +
+           std::to_string(channel) + "\naddress = " + std::to_string(address) + "\nodr_hz = 100\n" +
+           extra;
+}
+
+LoadResult load(const std::string& text) {
+    return loadBoardText(text, "test.toml");
+}
+
+// The line (1-based) of the first occurrence of needle in text.
+int lineOf(const std::string& text, const std::string& needle, std::size_t from = 0) {
+    const auto pos = text.find(needle, from);
+    EXPECT_NE(pos, std::string::npos) << needle;
+    return 1 +
+           static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(pos), '\n'));
+}
+
+void expectOneError(const LoadResult& r, const std::string& key, int line,
+                    const std::string& messagePart) {
+    ASSERT_FALSE(r.ok());
+    ASSERT_EQ(r.errors.size(), 1u) << r.errors[0].str();
+    const Diagnostic& d = r.errors[0];
+    EXPECT_EQ(d.where.file, "test.toml");
+    EXPECT_EQ(d.key, key) << d.str();
+    EXPECT_EQ(d.where.line, line) << d.str();
+    EXPECT_THAT(d.message, HasSubstr(messagePart)) << d.str();
+}
+
+TEST(BoardLoader, AcceptsAValidBoard) {
+    const auto r = load(kHeader + sensor("a", "pelvis", 0, 0x68) + sensor("b", "t12", 0, 0x69));
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    const Board& b = *r.board;
+    EXPECT_EQ(b.name, "test");
+    ASSERT_EQ(b.sensors.size(), 2u);
+    EXPECT_EQ(b.sensors[1].segment, Segment::T12);
+    EXPECT_EQ(b.sensors[1].address, 0x69);
+    EXPECT_EQ(b.sensors[0].mux, 0);
+    EXPECT_EQ(b.sensors[0].achievedOdrHz, 100.0);
+    EXPECT_EQ(b.sensors[0].magOdrHz, 100.0);
+    EXPECT_EQ(b.buses[0].device, "/dev/i2c-1");
+    ASSERT_EQ(r.loads.size(), 1u);
+    EXPECT_GT(r.loads[0].utilisation, 0.0);
+}
+
+TEST(BoardLoader, ReportsATomlSyntaxErrorWithItsLine) {
+    const std::string text = kHeader + "\n[[sensor]]\nname = \"a\nsegment = \"pelvis\"\n";
+    const auto r = load(text);
+    ASSERT_EQ(r.errors.size(), 1u);
+    EXPECT_EQ(r.errors[0].key, "(syntax)");
+    EXPECT_EQ(r.errors[0].where.line, lineOf(text, "name = \"a"));
+    EXPECT_THAT(r.errors[0].message, HasSubstr("TOML syntax error"));
+}
+
+TEST(BoardLoader, ReportsAnUnknownChip) {
+    const std::string s = sensor("a", "pelvis", 0, 0x68);
+    std::string text = kHeader + s;
+    text.replace(text.find("icm20948"), 8, "mpu9250");
+    expectOneError(load(text), "sensor[0].chip", lineOf(text, "mpu9250"), "unknown chip 'mpu9250'");
+}
+
+TEST(BoardLoader, ReportsAnUnknownSegmentAndListsTheKnownOnes) {
+    const std::string text = kHeader + sensor("a", "tail", 0, 0x68);
+    const auto r = load(text);
+    expectOneError(r, "sensor[0].segment", lineOf(text, "\"tail\""), "unknown segment 'tail'");
+    EXPECT_THAT(r.errors[0].message, HasSubstr("l_forearm"));
+}
+
+TEST(BoardLoader, ReportsTwoSensorsAtOneAddressOnTheSameMuxChannel) {
+    const std::string text = kHeader + sensor("a", "pelvis", 3, 0x68) + sensor("b", "t12", 3, 0x68);
+    const int line = lineOf(text, "address = 104", text.find("name = \"b\""));
+    expectOneError(load(text), "sensor[1].address", line, "already taken by sensor 'a'");
+}
+
+TEST(BoardLoader, AllowsOneAddressOnDifferentMuxChannels) {
+    const auto r = load(kHeader + sensor("a", "pelvis", 3, 0x68) + sensor("b", "t12", 4, 0x68));
+    EXPECT_TRUE(r.ok());
+}
+
+TEST(BoardLoader, ADeviceOnTheBusItselfCollidesWithEveryChannel) {
+    std::string direct = sensor("b", "t12", 0, 0x68);
+    direct.replace(direct.find("mux = \"mux0\"\nchannel = 0\n"), 25, "");
+    const std::string text = kHeader + sensor("a", "pelvis", 5, 0x68) + direct;
+    const auto r = load(text);
+    ASSERT_EQ(r.errors.size(), 1u);
+    EXPECT_EQ(r.errors[0].key, "sensor[1].address");
+}
+
+TEST(BoardLoader, ReportsAMalformedDataReadyLine) {
+    for (const std::string bad : {"gpio0:17", "gpiochip0", "gpiochip0:", "gpiochip0:x",
+                                  "gpiochip0:17:1", "gpiochip-1:3", "gpiochip0: 17"}) {
+        const std::string text =
+            kHeader + sensor("a", "pelvis", 0, 0x68, "drdy = \"" + bad + "\"\n");
+        expectOneError(load(text), "sensor[0].drdy", lineOf(text, "drdy"), "is not a GPIO line");
+    }
+}
+
+TEST(BoardLoader, ParsesADataReadyLine) {
+    const auto r = load(kHeader + sensor("a", "pelvis", 0, 0x68, "drdy = \"gpiochip1:27\"\n"));
+    ASSERT_TRUE(r.ok());
+    ASSERT_TRUE(r.board->sensors[0].dataReady);
+    EXPECT_EQ(r.board->sensors[0].dataReady->chip, 1);
+    EXPECT_EQ(r.board->sensors[0].dataReady->offset, 27);
+}
+
+TEST(BoardLoader, ReportsTwoSensorsOnOneDataReadyLine) {
+    const std::string text = kHeader + sensor("a", "pelvis", 0, 0x68, "drdy = \"gpiochip0:4\"\n") +
+                             sensor("b", "t12", 0, 0x69, "drdy = \"gpiochip0:4\"\n");
+    const int line = lineOf(text, "drdy", text.find("name = \"b\""));
+    expectOneError(load(text), "sensor[1].drdy", line, "already the data-ready line of sensor 'a'");
+}
+
+TEST(BoardLoader, ReportsAnOdrTheChipCannotDoWithTheNearestRates) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("odr_hz = 100"), 12, "odr_hz = 200");
+    const auto r = load(text);
+    expectOneError(r, "sensor[0].odr_hz", lineOf(text, "odr_hz"), "cannot run at 200 Hz");
+    EXPECT_THAT(r.errors[0].message, HasSubstr("183.333"));
+    EXPECT_THAT(r.errors[0].message, HasSubstr("220"));
+}
+
+TEST(BoardLoader, ReportsABusOverBudget) {
+    // Eight sensors at 1100 Hz on a 400 kHz bus: far beyond it.
+    std::string text = kHeader;
+    const char* segments[] = {"pelvis", "t12", "skull", "l5", "c7", "l_hand", "r_hand", "l_thigh"};
+    for (int i = 0; i < 8; ++i) {
+        std::string s = sensor("s" + std::to_string(i), segments[i], i / 2, 0x68 + i % 2);
+        s.replace(s.find("odr_hz = 100"), 12, "odr_hz = 1100");
+        text += s;
+    }
+    const auto r = load(text);
+    expectOneError(r, "bus[0]", lineOf(text, "[[bus]]"), "over the 80% budget");
+    ASSERT_EQ(r.loads.size(), 1u);
+    EXPECT_GT(r.loads[0].utilisation, 0.8);
+}
+
+TEST(BoardLoader, ReportsAMissingRequiredKeyAtItsTable) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("odr_hz = 100\n"), 13, "");
+    expectOneError(load(text), "sensor[0].odr_hz", lineOf(text, "[[sensor]]"),
+                   "missing required key");
+}
+
+TEST(BoardLoader, ReportsAMissingSchema) {
+    const std::string text =
+        kHeader.substr(kHeader.find('\n') + 1) + sensor("a", "pelvis", 0, 0x68);
+    expectOneError(load(text), "schema", 1, "missing required key");
+}
+
+TEST(BoardLoader, ReportsAnUnknownKey) {
+    const std::string text = kHeader + sensor("a", "pelvis", 0, 0x68, "odr = 100\n");
+    expectOneError(load(text), "sensor[0].odr", lineOf(text, "odr = 100"), "unknown key");
+}
+
+TEST(BoardLoader, ReportsAValueOfTheWrongType) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("odr_hz = 100"), 12, "odr_hz = \"fast\"");
+    expectOneError(load(text), "sensor[0].odr_hz", lineOf(text, "odr_hz"), "found a string");
+}
+
+TEST(BoardLoader, ReportsAnAddressTheChipDoesNotHave) {
+    const std::string text = kHeader + sensor("a", "pelvis", 0, 0x6A);
+    expectOneError(load(text), "sensor[0].address", lineOf(text, "address = 106"),
+                   "is not an address of the icm20948");
+}
+
+TEST(BoardLoader, ReportsAMuxChannelOutOfRange) {
+    const std::string text = kHeader + sensor("a", "pelvis", 8, 0x68);
+    expectOneError(load(text), "sensor[0].channel", lineOf(text, "channel = 8"), "0 to 7");
+}
+
+TEST(BoardLoader, ReportsAnUnknownBusAndMux) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("bus = \"i2c1\"\nmux"), 12, "bus = \"i2c9\"");
+    const auto r = load(text);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.errors[0].key, "sensor[0].bus");
+    EXPECT_THAT(r.errors[0].message, HasSubstr("no bus named 'i2c9'"));
+}
+
+TEST(BoardLoader, ReportsTwoSensorsOnOneSegment) {
+    const std::string text =
+        kHeader + sensor("a", "pelvis", 0, 0x68) + sensor("b", "pelvis", 0, 0x69);
+    const int line = lineOf(text, "segment", text.find("name = \"b\""));
+    expectOneError(load(text), "sensor[1].segment", line, "already has a sensor (sensor 'a')");
+}
+
+TEST(BoardLoader, ReportsABusClockAboveWhatTheChipAllows) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("clock_hz = 400000"), 17, "clock_hz = 1000000");
+    expectOneError(load(text), "bus[0].clock_hz", lineOf(text, "clock_hz"),
+                   "faster than the icm20948");
+}
+
+TEST(BoardLoader, ReportsTwoMuxesAtOneAddress) {
+    const std::string text = kHeader +
+                             "\n[[mux]]\nname = \"mux1\"\nbus = \"i2c1\"\naddress = 0x70\n" +
+                             sensor("a", "pelvis", 0, 0x68);
+    expectOneError(load(text), "mux[1].address", lineOf(text, "address = 0x70", text.find("mux1")),
+                   "already taken by mux 'mux0'");
+}
+
+TEST(BoardLoader, SpiSensorsTakeChipSelectsNotAddresses) {
+    const std::string text = R"(schema = 1
+name = "spi"
+[[bus]]
+name = "spi0"
+type = "spi"
+device = "/dev/spidev0"
+clock_hz = 7000000
+[[sensor]]
+name = "a"
+segment = "pelvis"
+chip = "icm20948"
+bus = "spi0"
+chip_select = 0
+odr_hz = 1100
+[[sensor]]
+name = "b"
+segment = "t12"
+chip = "lsm6dsox+lis3mdl"
+bus = "spi0"
+chip_select = 0
+mag_chip_select = 1
+odr_hz = 104
+)";
+    const auto r = load(text);
+    expectOneError(r, "sensor[1].chip_select", lineOf(text, "chip_select = 0", text.find("\"b\"")),
+                   "chip select 0 of bus 'spi0' is already taken by sensor 'a'");
+}
+
+TEST(BoardLoader, LsmSensorGetsItsMagnetometerAddressAndRates) {
+    const std::string text = R"(schema = 1
+name = "lsm"
+[[bus]]
+name = "sim0"
+type = "sim"
+clock_hz = 400000
+[[sensor]]
+name = "a"
+segment = "l_hand"
+chip = "lsm6dsox+lis3mdl"
+bus = "sim0"
+address = 0x6a
+odr_hz = 104
+)";
+    const auto r = load(text);
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    const auto& s = r.board->sensors[0];
+    ASSERT_TRUE(s.magAddress);
+    EXPECT_EQ(*s.magAddress, 0x1C);
+    EXPECT_EQ(s.magOdrHz, 80.0);  // fastest LIS3MDL rate up to min(104, 100) Hz
+    EXPECT_EQ(s.accelRangeG, 16.0);
+}
+
+TEST(BoardLoader, MountingFromEulerAnglesAndQuaternions) {
+    auto r = load(kHeader + sensor("a", "pelvis", 0, 0x68, "mounting_euler_deg = [0, 0, 90]\n"));
+    ASSERT_TRUE(r.ok());
+    // 90 deg about the segment's z: the sensor's x axis lies along the segment's y.
+    EXPECT_LT((r.board->sensors[0].mounting * Vec3d::UnitX() - Vec3d::UnitY()).norm(), 1e-12);
+
+    r = load(kHeader + sensor("a", "pelvis", 0, 0x68, "mounting_quat = [0.5, 0.5, 0.5, 0.5]\n"));
+    ASSERT_TRUE(r.ok());
+    EXPECT_NEAR(r.board->sensors[0].mounting.w(), 0.5, 1e-15);
+
+    const std::string bad =
+        kHeader + sensor("a", "pelvis", 0, 0x68, "mounting_quat = [1, 1, 0, 0]\n");
+    expectOneError(load(bad), "sensor[0].mounting_quat", lineOf(bad, "mounting_quat"),
+                   "not a unit quaternion");
+}
+
+TEST(BoardLoader, ReportsEveryMistakeNotJustTheFirst) {
+    std::string text =
+        kHeader + sensor("a", "tail", 0, 0x68, "drdy = \"gpio4\"\n") + sensor("b", "t12", 0, 0x69);
+    text.replace(text.find("odr_hz = 100", text.find("name = \"b\"")), 12, "odr_hz = 77");
+    const auto r = load(text);
+    ASSERT_EQ(r.errors.size(), 3u);
+    EXPECT_EQ(r.errors[0].key, "sensor[0].segment");
+    EXPECT_EQ(r.errors[1].key, "sensor[0].drdy");
+    EXPECT_EQ(r.errors[2].key, "sensor[1].odr_hz");
+    for (const auto& e : r.errors) {
+        EXPECT_GT(e.where.line, 0);
+        EXPECT_THAT(e.str(), ::testing::StartsWith("test.toml:"));
+    }
+}
+
+TEST(BoardLoader, ReportsAFileItCannotRead) {
+    const auto r = loadBoardFile("/nonexistent/board.toml");
+    ASSERT_EQ(r.errors.size(), 1u);
+    EXPECT_THAT(r.errors[0].str(), HasSubstr("/nonexistent/board.toml"));
+    EXPECT_THAT(r.errors[0].message, HasSubstr("No such file or directory"));
+}
+
+TEST(ShippedBoards, SimSuitHas17SensorsCoveringTheBody) {
+    const auto r = loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-suit.toml");
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_EQ(r.board->sensors.size(), 17u);
+    for (const auto& load : r.loads) {
+        EXPECT_LE(load.utilisation, kMaxBusUtilisation);
+    }
+}
+
+TEST(ShippedBoards, SimUpper10IsThePapersLayout) {
+    const auto r = loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    ASSERT_EQ(r.board->sensors.size(), 10u);
+    std::set<Segment> segs;
+    for (const auto& s : r.board->sensors) {
+        segs.insert(s.segment);
+        EXPECT_EQ(s.achievedOdrHz, 50.0);
+    }
+    for (Segment s : {Segment::LUpperarm, Segment::RUpperarm, Segment::LForearm, Segment::RForearm,
+                      Segment::LHand, Segment::RHand, Segment::Skull}) {
+        EXPECT_TRUE(segs.count(s)) << segmentName(s);
+    }
+}
+
+}  // namespace
+}  // namespace caphub::board
+
+namespace caphub::board {
+namespace {
+
+// The full example of docs/user-guide.md must stay a valid board file.
+TEST(Documentation, UserGuideExampleIsValid) {
+    std::ifstream in(CAPHUB_SOURCE_DIR "/docs/user-guide.md");
+    ASSERT_TRUE(in);
+    std::stringstream doc;
+    doc << in.rdbuf();
+    const std::string text = doc.str();
+    const auto begin = text.find("```toml\n");
+    ASSERT_NE(begin, std::string::npos);
+    const auto end = text.find("```", begin + 8);
+    const auto r = loadBoardText(text.substr(begin + 8, end - begin - 8), "user-guide.md");
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_EQ(r.board->sensors.size(), 2u);
+    EXPECT_EQ(r.board->display.type, DisplayType::Framebuffer);
+    ASSERT_EQ(r.board->subject.segmentLengthsM.size(), 1u);
+}
+
+}  // namespace
+}  // namespace caphub::board

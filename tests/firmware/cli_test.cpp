@@ -1,0 +1,131 @@
+// The caphub command, run as a person would: exit codes and what it prints.
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+namespace {
+
+using ::testing::HasSubstr;
+
+struct CliRun {
+    int exitCode = -1;
+    std::string output;  // stdout and stderr
+};
+
+CliRun caphub(const std::string& args) {
+    const std::string cmd = std::string(CAPHUB_BINARY) + " " + args + " 2>&1";
+    CliRun r;
+    FILE* p = popen(cmd.c_str(), "r");
+    if (p == nullptr) {
+        return r;
+    }
+    std::array<char, 4096> buf{};
+    std::size_t n = 0;
+    while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) {
+        r.output.append(buf.data(), n);
+    }
+    const int status = pclose(p);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+    const std::string path = ::testing::TempDir() + name;
+    std::ofstream(path) << text;
+    return path;
+}
+
+TEST(Cli, VersionPrintsTheVersion) {
+    const CliRun r = caphub("version");
+    EXPECT_EQ(r.exitCode, 0);
+    EXPECT_THAT(r.output, HasSubstr("caphub 0."));
+    EXPECT_EQ(caphub("--version").exitCode, 0);
+}
+
+TEST(Cli, HelpWorksEverywhere) {
+    for (const char* args : {"--help", "boards --help", "boards validate --help", "info --help",
+                             "run --help", "export --help"}) {
+        const CliRun r = caphub(args);
+        EXPECT_EQ(r.exitCode, 0) << args;
+        EXPECT_THAT(r.output, HasSubstr("Usage")) << args;
+    }
+}
+
+TEST(Cli, NoSubcommandIsAUsageError) {
+    EXPECT_EQ(caphub("").exitCode, 2);
+}
+
+TEST(Cli, UnknownSubcommandIsAUsageError) {
+    EXPECT_EQ(caphub("frobnicate").exitCode, 2);
+}
+
+TEST(Cli, BadLogSpecIsAUsageError) {
+    const CliRun r = caphub("--log hal=loud version");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("loud"));
+}
+
+TEST(Cli, ValidatesTheDefaultSuit) {
+    const CliRun r = caphub("boards validate " CAPHUB_SOURCE_DIR "/board/sim-suit.toml");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("17 sensors on 4 buses"));
+    EXPECT_THAT(r.output, HasSubstr("bus sim-i2c-5"));
+    EXPECT_THAT(r.output, HasSubstr("utilisation"));
+    EXPECT_THAT(r.output, HasSubstr("valid: 17 sensors"));
+}
+
+TEST(Cli, FindsAShippedBoardByName) {
+    const CliRun r = caphub("boards validate sim-upper10");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("valid: 10 sensors"));
+}
+
+TEST(Cli, ListsTheShippedBoards) {
+    const CliRun r = caphub("boards list");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("sim-suit"));
+    EXPECT_THAT(r.output, HasSubstr("sim-upper10"));
+}
+
+TEST(Cli, BoardWithThreeMistakesGetsThreeErrorsAndExitCode2) {
+    const std::string path = std::string(CAPHUB_TEST_DATA_DIR) + "/boards/three-mistakes.toml";
+    const CliRun r = caphub("boards validate " + path);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(path + ":15:8: sensor[0].chip: unknown chip 'bmi160'"));
+    EXPECT_THAT(r.output, HasSubstr(path + ":26:8: sensor[1].drdy: 'GPIO17' is not a GPIO line"));
+    EXPECT_THAT(r.output, HasSubstr(path + ":29:1: sensor[2].segment: missing required key"));
+    EXPECT_THAT(r.output, HasSubstr("3 errors"));
+}
+
+TEST(Cli, UnreadableBoardIsAConfigurationError) {
+    const CliRun r = caphub("boards validate /nonexistent.toml");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("No such file or directory"));
+}
+
+TEST(Cli, SyntaxErrorNamesTheLine) {
+    const std::string path = writeTemp("syntax.toml", "schema = 1\nname = \"x\"\n[[bus]\n");
+    const CliRun r = caphub("boards validate " + path);
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr(path + ":3:"));
+}
+
+TEST(Cli, InfoListsChipsAndSegments) {
+    const CliRun r = caphub("info");
+    EXPECT_EQ(r.exitCode, 0);
+    EXPECT_THAT(r.output, HasSubstr("icm20948"));
+    EXPECT_THAT(r.output, HasSubstr("segments (21)"));
+}
+
+TEST(Cli, PlannedSubcommandsSayTheyAreNotAvailable) {
+    const CliRun r = caphub("run");
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_THAT(r.output, HasSubstr("not in this build yet"));
+}
+
+}  // namespace

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package caphub needs to build, run and test on the host.
+# Idempotent: only packages that are missing are installed; nothing is downloaded from anywhere
+# but the Debian archive. Works as root, or through sudo for a normal user.
+set -euo pipefail
+
+# Build and core libraries.
+packages=(
+  build-essential cmake ninja-build ccache pkg-config git
+  clang-format
+  libeigen3-dev libfmt-dev libspdlog-dev libtomlplusplus-dev libcli11-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || true)
+  [ "$status" = "installed" ] || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "bootstrap: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+if [ "$(id -u)" -eq 0 ]; then
+  sudo=()
+elif command -v sudo >/dev/null 2>&1; then
+  sudo=(sudo)
+else
+  echo "bootstrap: need root or sudo to install: ${missing[*]}" >&2
+  exit 1
+fi
+
+echo "bootstrap: installing ${missing[*]}"
+apt=("${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get)
+"${apt[@]}" update -q
+"${apt[@]}" install -y -q --no-install-recommends "${missing[@]}"
