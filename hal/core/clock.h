@@ -46,12 +46,12 @@ public:
     void advanceBy(Duration d);
 
 private:
+    MonotonicClock real_;  // first: the paced constructor reads it
     Mode mode_;
     double rate_ = 1.0;
     std::atomic<std::int64_t> nowNs_;  // stepped mode
     Timestamp start_{};                // paced mode: simulated time at realStart_
     Timestamp realStart_{};
-    MonotonicClock real_;
 };
 
 }  // namespace caphub
