@@ -4,12 +4,16 @@
 # but the Debian archive. Works as root, or through sudo for a normal user.
 set -euo pipefail
 
-# Build and core libraries.
 packages=(
-  build-essential cmake ninja-build ccache pkg-config git
-  clang-format
-  libeigen3-dev libfmt-dev libspdlog-dev libtomlplusplus-dev libcli11-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # Build tools.
+  build-essential cmake ninja-build ccache pkg-config git clang-format
+  # Libraries (architecture: Dependencies).
+  libeigen3-dev libfmt-dev libspdlog-dev libtomlplusplus-dev libcli11-dev zlib1g-dev
+  libi2c-dev libgpiod-dev
+  # Tests and benchmarks; clang and its runtime for the libFuzzer targets.
+  libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev
+  # Kernel-level tests: Debian's kernel booted under qemu with a busybox initramfs.
+  qemu-system-x86 busybox-static cpio kmod xz-utils
 )
 
 missing=()
