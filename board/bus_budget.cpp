@@ -65,7 +65,9 @@ std::vector<BusLoad> computeBusLoads(const Board& board) {
             }
             const hal::ChipInfo& chip = *sensor.chip;
             Cost c = readCost(bus.protocol, chip.imuRead, sensor.achievedOdrHz);
-            const Cost mag = readCost(bus.protocol, chip.magRead, sensor.magOdrHz);
+            // A magnetometer read on its own is polled at twice its rate (at most every sample).
+            const Cost mag = readCost(bus.protocol, chip.magRead,
+                                      std::min(sensor.achievedOdrHz, 2 * sensor.magOdrHz));
             c.transactions += mag.transactions;
             c.bytes += mag.bytes;
             c.bits += mag.bits;

@@ -19,6 +19,9 @@ std::string GpioLine::text() const {
     return fmt::format("gpiochip{}:{}", chip, offset);
 }
 
+Diagnostic::Diagnostic(SourceLocation whereIn, std::string keyIn, std::string messageIn)
+    : where(std::move(whereIn)), key(std::move(keyIn)), message(std::move(messageIn)) {}
+
 std::string Diagnostic::str() const {
     return fmt::format("{}:{}:{}: {}: {}", where.file, where.line, where.column, key, message);
 }
@@ -81,13 +84,13 @@ private:
     }
 
     void error(const toml::source_region& r, std::string key, std::string message) {
-        out_.errors.push_back({loc(r), std::move(key), std::move(message)});
+        out_.errors.emplace_back(loc(r), std::move(key), std::move(message));
     }
     void error(const SourceLocation& l, std::string key, std::string message) {
-        out_.errors.push_back({l, std::move(key), std::move(message)});
+        out_.errors.emplace_back(l, std::move(key), std::move(message));
     }
     void warning(const toml::source_region& r, std::string key, std::string message) {
-        out_.warnings.push_back({loc(r), std::move(key), std::move(message)});
+        out_.warnings.emplace_back(loc(r), std::move(key), std::move(message));
     }
 
     static std::string join(const std::string& path, std::string_view key) {
@@ -897,9 +900,12 @@ LoadResult loadBoardText(std::string_view text, const std::string& sourceName) {
         root = toml::parse(text, sourceName);
     } catch (const toml::parse_error& e) {
         const auto& b = e.source().begin;
-        out.errors.push_back({{sourceName, static_cast<int>(b.line), static_cast<int>(b.column)},
-                              "(syntax)",
-                              fmt::format("TOML syntax error: {}", e.description())});
+        SourceLocation where;
+        where.file = sourceName;
+        where.line = static_cast<int>(b.line);
+        where.column = static_cast<int>(b.column);
+        out.errors.emplace_back(std::move(where), "(syntax)",
+                                fmt::format("TOML syntax error: {}", e.description()));
         return out;
     }
     Parser(sourceName, out).run(root);
@@ -914,9 +920,10 @@ LoadResult loadBoardFile(const std::filesystem::path& path) {
     if (!in) {
         LoadResult out;
         const int err = errno;
-        out.errors.push_back({{path.string(), 0, 0},
-                              "(file)",
-                              fmt::format("cannot read the board file: {}", errnoText(err))});
+        SourceLocation where;
+        where.file = path.string();
+        out.errors.emplace_back(std::move(where), "(file)",
+                                fmt::format("cannot read the board file: {}", errnoText(err)));
         return out;
     }
     std::ostringstream text;

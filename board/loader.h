@@ -14,6 +14,8 @@
 namespace caphub::board {
 
 struct Diagnostic {
+    Diagnostic(SourceLocation where, std::string key, std::string message);
+
     SourceLocation where;
     std::string key;  // dotted path in the file, e.g. "sensor[3].odr_hz"
     std::string message;

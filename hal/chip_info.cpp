@@ -76,7 +76,7 @@ constexpr std::array<ChipInfo, 2> kChips = {{
         400e3,  // the LSM6DSOX does 1 MHz, but the LIS3MDL on the same bus only 400 kHz
         10e6,
         {1, 14},  // OUT_TEMP_L (0x20) .. OUTZ_H_A (0x2D)
-        {1, 6},   // LIS3MDL OUT_X_L (0x28) .. OUT_Z_H (0x2D), auto-increment
+        {1, 7},   // LIS3MDL STATUS_REG (0x27) .. OUT_Z_H (0x2D), auto-increment
         {1, 1},   // STATUS_REG (0x1E), XLDA/GDA
         lsmNearestOdr,
         "12.5, 26, 52, 104, 208, 416, 833, 1666, 3332 or 6664 Hz",
