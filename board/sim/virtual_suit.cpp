@@ -1,0 +1,156 @@
+#include "board/sim/virtual_suit.h"
+
+#include <fmt/format.h>
+
+#include "hal/sim/sim_bus.h"
+
+namespace caphub::board::sim {
+
+namespace {
+
+namespace hs = hal::sim;
+
+// Everything the simulated hardware owns, kept alive by SuitHardware::keepAlive.
+struct World {
+    std::vector<std::unique_ptr<hs::PhysicalSource>> sources;
+    std::vector<std::unique_ptr<hs::ChipModel>> chips;
+    std::vector<std::unique_ptr<hs::Tca9548aModel>> muxes;
+};
+
+}  // namespace
+
+Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
+                                      const SourceFactory& sourceFor, VirtualChips* chipsOut) {
+    auto world = std::make_shared<World>();
+    SuitHardware suit;
+    suit.clock = &clock;
+    if (chipsOut != nullptr) {
+        chipsOut->imu.assign(board.sensors.size(), nullptr);
+        chipsOut->mag.assign(board.sensors.size(), nullptr);
+    }
+    for (std::size_t b = 0; b < board.buses.size(); ++b) {
+        const BusConfig& bc = board.buses[b];
+        if (bc.type != BusType::Sim) {
+            return Error{EINVAL, "bus '" + bc.name + "' is a real " +
+                                     std::string(hal::toString(bc.protocol)) +
+                                     " bus: the virtual suit runs only sim buses"};
+        }
+        BusHardware hw;
+        hw.bus = static_cast<int>(b);
+        hw.waiter = std::make_unique<hs::SimDataReadyWaiter>(clock);
+        hs::SimI2cBus* i2c = nullptr;
+        std::vector<std::pair<std::string, hs::Tca9548aModel*>> muxModels;
+        if (bc.protocol == hal::BusProtocol::I2c) {
+            auto bus = std::make_unique<hs::SimI2cBus>(bc.name, clock);
+            i2c = bus.get();
+            hw.i2c = std::move(bus);
+            for (const MuxConfig& m : board.muxes) {
+                if (m.bus != hw.bus) {
+                    continue;
+                }
+                world->muxes.push_back(std::make_unique<hs::Tca9548aModel>());
+                i2c->attach(*world->muxes.back(), m.address);
+                muxModels.emplace_back(m.name, world->muxes.back().get());
+                hw.muxes.push_back(std::make_unique<hal::Tca9548a>(*hw.i2c, m.address, m.name));
+            }
+            for (auto& m : hw.muxes) {
+                std::vector<hal::Tca9548a*> siblings;
+                for (auto& o : hw.muxes) {
+                    if (o != m) {
+                        siblings.push_back(o.get());
+                    }
+                }
+                m->setSiblings(std::move(siblings));
+            }
+        }
+        for (std::size_t s = 0; s < board.sensors.size(); ++s) {
+            const SensorConfig& sc = board.sensors[s];
+            if (sc.bus != hw.bus) {
+                continue;
+            }
+            auto source = sourceFor ? sourceFor(sc, static_cast<int>(s)) : nullptr;
+            if (!source) {
+                source = std::make_unique<hs::ConstantSource>();
+            }
+            world->sources.push_back(std::move(source));
+            hs::PhysicalSource* src = world->sources.back().get();
+
+            hs::ChipModel* imuChip = nullptr;
+            hs::ChipModel* magChip = nullptr;
+            if (sc.chip->name == "icm20948") {
+                auto chip = std::make_unique<hs::Icm20948Model>();
+                chip->setPhysicalSource(src);
+                imuChip = chip.get();
+                world->chips.push_back(std::move(chip));
+            } else {
+                auto imu = std::make_unique<hs::Lsm6dsoxModel>();
+                auto mag = std::make_unique<hs::Lis3mdlModel>();
+                imu->setSource(src);
+                mag->setSource(src);
+                imuChip = imu.get();
+                magChip = mag.get();
+                world->chips.push_back(std::move(imu));
+                world->chips.push_back(std::move(mag));
+            }
+            if (chipsOut != nullptr) {
+                chipsOut->imu[s] = imuChip;
+                chipsOut->mag[s] = magChip;
+            }
+
+            std::unique_ptr<hal::RegisterIo> imuRegs;
+            std::unique_ptr<hal::RegisterIo> magRegs;
+            if (i2c != nullptr) {
+                const hs::Tca9548aModel* muxModel = nullptr;
+                hal::I2cBus* bus = hw.i2c.get();
+                if (sc.mux >= 0) {
+                    const std::string& name = board.muxes[static_cast<std::size_t>(sc.mux)].name;
+                    for (auto& [n, model] : muxModels) {
+                        if (n == name) {
+                            muxModel = model;
+                        }
+                    }
+                    for (auto& m : hw.muxes) {
+                        if (m->name() == name) {
+                            bus = &m->channel(sc.channel);
+                        }
+                    }
+                }
+                i2c->attach(*imuChip, sc.address, muxModel, sc.channel);
+                imuRegs = i2cRegisters(sc, *bus, false);
+                if (magChip != nullptr) {
+                    i2c->attach(*magChip, *sc.magAddress, muxModel, sc.channel);
+                    magRegs = i2cRegisters(sc, *bus, true);
+                }
+            } else {
+                hw.spi.push_back(std::make_unique<hs::SimSpiBus>(
+                    fmt::format("{}.{}", bc.name, sc.chipSelect), clock, *imuChip));
+                imuRegs = spiRegisters(sc, *hw.spi.back(), false);
+                if (magChip != nullptr) {
+                    hw.spi.push_back(std::make_unique<hs::SimSpiBus>(
+                        fmt::format("{}.{}", bc.name, sc.magChipSelect), clock, *magChip));
+                    magRegs = spiRegisters(sc, *hw.spi.back(), true);
+                }
+            }
+            auto driver = makeDriver(sc, bc.protocol, std::move(imuRegs), std::move(magRegs));
+            if (!driver) {
+                return driver.error();
+            }
+            SensorHardware sh;
+            sh.sensor = static_cast<int>(s);
+            sh.driver = std::move(*driver);
+            // Sensors without a wired line are polled on their rate; in the simulation the chip's
+            // sample instants stand in for the timer ticks, and the driver checks the status bit.
+            sh.line = std::make_unique<hs::SimDataReadyLine>(
+                sc.dataReady ? sc.dataReady->text() : "timer:" + sc.name, clock, *imuChip);
+            if (int r = hw.waiter->add(*sh.line); r < 0) {
+                return Error{-r, "sensor '" + sc.name + "': cannot wait on its line"};
+            }
+            hw.sensors.push_back(std::move(sh));
+        }
+        suit.buses.push_back(std::move(hw));
+    }
+    suit.keepAlive = world;
+    return suit;
+}
+
+}  // namespace caphub::board::sim

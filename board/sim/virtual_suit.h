@@ -1,0 +1,30 @@
+// The virtual suit's hardware: for a board whose buses are simulated, register-level chip models
+// on simulated buses (with TCA9548A models), driven by physical inputs, and the same drivers,
+// muxes and data-ready waiting the hub uses on real buses.
+#pragma once
+
+#include <functional>
+#include <memory>
+
+#include "board/hardware.h"
+#include "hal/sim/device_model.h"
+#include "hal/sim/imu_models.h"
+
+namespace caphub::board::sim {
+
+// The physical inputs of one sensor (in its chip's frame), e.g. from the virtual suit's motion
+// and IMU model; nullptr leaves the sensor at rest, level, facing north.
+using SourceFactory =
+    std::function<std::unique_ptr<hal::sim::PhysicalSource>(const SensorConfig& sensor, int index)>;
+
+// The chip models of a built suit, for fault injection and inspection.
+struct VirtualChips {
+    std::vector<hal::sim::ChipModel*> imu;  // per board sensor: the accel/gyro chip
+    std::vector<hal::sim::ChipModel*> mag;  // per board sensor: a separate magnetometer, or null
+};
+
+// Builds the suit of a board whose buses are all sim buses. Errors name the offending bus.
+Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
+                                      const SourceFactory& sources, VirtualChips* chips = nullptr);
+
+}  // namespace caphub::board::sim
