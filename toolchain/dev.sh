@@ -24,13 +24,19 @@ case "${1:-}" in
 run)
     build release
     out="$root/out"
-    mkdir -p "$out"
-    # Until the capture runtime lands, the main job validates the default suit and describes
-    # its plan: sensors per bus and each bus's utilisation.
-    report="$out/sim-suit-plan.txt"
-    build/release/bin/caphub boards validate board/sim-suit.toml | tee "$report"
+    mkdir -p "$out/recordings"
+    caphub=build/release/bin/caphub
+    # The main job: capture the default virtual suit (17 sensors) for a while, paced to real
+    # time, recording every sample and event; then describe the recording.
+    "$caphub" boards validate board/sim-suit.toml --quiet
+    "$caphub" run --board board/sim-suit.toml --duration "${CAPHUB_RUN_SECONDS:-10}" \
+        --out "$out/recordings" | tee "$out/run-report.txt"
+    recording=$(ls -t "$out"/recordings/*.cap | head -n 1)
+    "$caphub" info "$recording" >"$out/recording-info.txt"
     echo
-    echo "output: $report"
+    echo "output: $recording"
+    echo "        $out/run-report.txt (the capture's report)"
+    echo "        $out/recording-info.txt (caphub info of the recording)"
     ;;
 test)
     preset=${2:-debug}

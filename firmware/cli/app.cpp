@@ -21,7 +21,6 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"run", "Capture: sample the suit, fuse, solve the body, record and preview"},
     {"calibrate", "Calibrate the sensors (gyro bias, accelerometer, magnetometer) and the body"},
     {"selftest", "Probe every sensor of a board and check its configuration"},
     {"export", "Export a recording to BVH, glTF (.glb), CSV or OpenSim .sto"},
@@ -54,6 +53,7 @@ int runCli(int argc, char** argv) {
 
     addBoardsCommand(app, exitCode);
     addInfoCommands(app, exitCode);
+    addRunCommand(app, exitCode);
     for (const auto& p : kPlanned) {
         CLI::App* sub = app.add_subcommand(p.name, p.description);
         sub->allow_extras();

@@ -1,4 +1,8 @@
 // caphub version and caphub info: what this build is and what it supports.
+#include <algorithm>
+#include <map>
+#include <sstream>
+
 #include <fmt/format.h>
 
 #include "board/segment.h"
@@ -6,6 +10,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/recording/reader.h"
 #include "firmware/version.h"
 #include "hal/chip_info.h"
 
@@ -42,6 +47,88 @@ void printInfo() {
     }
 }
 
+// A recording's summary: header, records per type, per sensor counts and rates, events, damage.
+int printRecording(const std::string& path) {
+    auto reader = RecordingReader::open(path);
+    if (!reader) {
+        fmt::print(stderr, "caphub info: {}\n", reader.error().message);
+        return kExitUsage;
+    }
+    auto& r = **reader;
+    std::map<int, std::uint64_t> perType;
+    std::map<int, std::uint64_t> perSensor;
+    std::map<int, std::pair<Timestamp, Timestamp>> sensorSpan;
+    std::vector<std::string> events;
+    Timestamp first = Timestamp::max();
+    Timestamp last = Timestamp::min();
+    RecordView v;
+    int rc = 0;
+    while ((rc = r.next(v)) == 1) {
+        ++perType[static_cast<int>(v.type)];
+        first = std::min(first, v.t);
+        last = std::max(last, v.t);
+        int sensor = 0;
+        hal::ImuSample sample;
+        if (decodeRawSample(v, sensor, sample)) {
+            ++perSensor[sensor];
+            auto [it, fresh] = sensorSpan.emplace(sensor, std::pair{v.t, v.t});
+            if (!fresh) {
+                it->second.second = v.t;
+            }
+        }
+        cap::EventKind kind{};
+        int error = 0;
+        std::string text;
+        if (decodeEvent(v, kind, sensor, error, text) && events.size() < 50) {
+            events.push_back(fmt::format("  {:10.3f} s  {}  sensor {}{}{}", toSeconds(v.t - first),
+                                         cap::eventName(kind), sensor,
+                                         error != 0 ? " (" + errnoText(error) + ")" : "",
+                                         text.empty() ? "" : ": " + text));
+        }
+    }
+    if (rc < 0) {
+        fmt::print(stderr, "caphub info: reading '{}': {}\n", path, errnoText(rc));
+        return kExitRuntime;
+    }
+    fmt::print("recording {} (format version {})\n", path, r.version());
+    const double span = first <= last ? toSeconds(last - first) : 0.0;
+    fmt::print("duration {:.3f} s\n", span);
+    fmt::print("\nmetadata:\n");
+    std::istringstream meta(r.metadata());
+    std::string line;
+    while (std::getline(meta, line)) {
+        if (line.rfind("text = ", 0) == 0) {
+            line = "text = (the board file, " + std::to_string(line.size()) + " bytes)";
+        }
+        fmt::print("  {}\n", line);
+    }
+    fmt::print("\nrecords:\n");
+    for (const auto& [type, n] : perType) {
+        fmt::print("  {:<12} {}\n", cap::typeName(static_cast<cap::RecordType>(type)), n);
+    }
+    if (!perSensor.empty()) {
+        fmt::print("\n{:<8} {:>9} {:>9}\n", "sensor", "samples", "rate Hz");
+        for (const auto& [sensor, n] : perSensor) {
+            const auto& [a, b] = sensorSpan[sensor];
+            const double s = toSeconds(b - a);
+            fmt::print("{:<8} {:>9} {:>9.1f}\n", sensor, n,
+                       s > 0 ? static_cast<double>(n - 1) / s : 0.0);
+        }
+    }
+    if (!events.empty()) {
+        fmt::print("\nevents:\n");
+        for (const auto& e : events) {
+            fmt::print("{}\n", e);
+        }
+    }
+    fmt::print("\ndamage: {}", r.damage().empty() ? "none" : "");
+    for (const auto& d : r.damage()) {
+        fmt::print("\n  {} bytes at offset {}: {}", d.bytes, d.offset, d.what);
+    }
+    fmt::print("\ntorn tail: {} bytes\n", r.tornTailBytes());
+    return kExitOk;
+}
+
 }  // namespace
 
 void addInfoCommands(CLI::App& app, int& exitCode) {
@@ -49,11 +136,18 @@ void addInfoCommands(CLI::App& app, int& exitCode) {
         fmt::print("{}\n", versionLine());
         exitCode = kExitOk;
     });
-    app.add_subcommand("info", "Print this build's chips, body segments and data folder")
-        ->callback([&exitCode] {
+    CLI::App* info = app.add_subcommand(
+        "info", "Print a recording's summary, or this build's chips, segments and data folder");
+    auto file = std::make_shared<std::string>();
+    info->add_option("FILE", *file, "A .cap recording to describe");
+    info->callback([&exitCode, file] {
+        if (file->empty()) {
             printInfo();
             exitCode = kExitOk;
-        });
+        } else {
+            exitCode = printRecording(*file);
+        }
+    });
 }
 
 }  // namespace caphub::firmware

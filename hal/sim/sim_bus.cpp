@@ -1,5 +1,6 @@
 #include "hal/sim/sim_bus.h"
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 
@@ -100,8 +101,7 @@ int SimSpiBus::transfer(std::span<const std::uint8_t> tx, std::span<std::uint8_t
 }
 
 std::optional<Timestamp> SimDataReadyLine::nextEdge() const {
-    // Edges already past when the line is first read are not replayed: it starts at "now".
-    return chip_.nextDataReady(last_ ? *last_ : clock_.now() - Duration{1});
+    return chip_.nextDataReady(std::max(last_, clock_.now() - kBacklog));
 }
 
 int SimDataReadyLine::readEdge(Timestamp& edgeTime) {

@@ -79,21 +79,23 @@ private:
 class SimDataReadyLine final : public DataReadyLine {
 public:
     SimDataReadyLine(std::string name, Clock& clock, const DataReadyModel& chip)
-        : name_(std::move(name)), clock_(clock), chip_(chip) {}
+        : name_(std::move(name)), clock_(clock), chip_(chip), last_(clock.now()) {}
 
     int waitEdge(Duration timeout, Timestamp& edgeTime) override;
     int readEdge(Timestamp& edgeTime) override;
     bool isTimer() const override { return false; }
     std::string name() const override { return name_; }
 
-    // The next edge not yet taken, if the chip will raise one.
+    // The next edge not yet taken, if the chip will raise one. Like the kernel's bounded event
+    // queue, edges older than kBacklog are dropped rather than replayed.
     std::optional<Timestamp> nextEdge() const;
+    static constexpr Duration kBacklog = std::chrono::milliseconds(100);
 
 private:
     std::string name_;
     Clock& clock_;
     const DataReadyModel& chip_;
-    std::optional<Timestamp> last_;
+    Timestamp last_;  // the last edge taken (edges before the line existed are not replayed)
 };
 
 // Waits on several simulated lines: sleeps until the earliest pending edge.

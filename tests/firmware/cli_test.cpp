@@ -1,6 +1,7 @@
 // The caphub command, run as a person would: exit codes and what it prints.
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -123,9 +124,42 @@ TEST(Cli, InfoListsChipsAndSegments) {
 }
 
 TEST(Cli, PlannedSubcommandsSayTheyAreNotAvailable) {
-    const CliRun r = caphub("run");
+    const CliRun r = caphub("replay");
     EXPECT_EQ(r.exitCode, 1);
     EXPECT_THAT(r.output, HasSubstr("not in this build yet"));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Cli, RunCapturesTheVirtualSuitAndInfoDescribesTheRecording) {
+    const std::string out = ::testing::TempDir() + "caphub-cli-run";
+    std::filesystem::remove_all(out);
+    const CliRun r = caphub("run --board sim-upper10 --duration 1 --speed 4 --out " + out);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("10 sensors on 1 buses"));
+    EXPECT_THAT(r.output, HasSubstr(" 0 dropped, 0 sensor losses"));
+    const auto pos = r.output.find("recording: ");
+    ASSERT_NE(pos, std::string::npos);
+    const std::string path = r.output.substr(pos + 11, r.output.find(' ', pos + 11) - pos - 11);
+    const CliRun info = caphub("info " + path);
+    EXPECT_EQ(info.exitCode, 0) << info.output;
+    EXPECT_THAT(info.output, HasSubstr("raw sample"));
+    EXPECT_THAT(info.output, HasSubstr("name = \"sim-upper10\""));
+    EXPECT_THAT(info.output, HasSubstr("damage: none"));
+}
+
+TEST(Cli, RunRefusesABadBoardWithExitCode2) {
+    const std::string path = std::string(CAPHUB_TEST_DATA_DIR) + "/boards/three-mistakes.toml";
+    EXPECT_EQ(caphub("run --board " + path + " --duration 1").exitCode, 2);
+}
+
+TEST(Cli, InfoOfANonRecordingIsAUsageError) {
+    const std::string path = writeTemp("not-a-recording.cap", "hello, this is not a recording");
+    const CliRun r = caphub("info " + path);
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("not a caphub recording"));
 }
 
 }  // namespace

@@ -1,0 +1,173 @@
+// caphub run: capture from a suit - the hub's real buses, or the virtual suit when the board's
+// buses are simulated - recording every sample and event, until Ctrl-C or a duration.
+#include <csignal>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "board/loader.h"
+#include "board/sim/virtual_suit.h"
+#include "firmware/cli/app.h"
+#include "firmware/cli/commands.h"
+#include "firmware/cli/data_dir.h"
+#include "firmware/cli/info.h"
+#include "firmware/runtime/capture.h"
+#include "firmware/runtime/recorder_stage.h"
+#include "hal/core/log.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::atomic<Capture*> gCapture{nullptr};
+
+extern "C" void onStopSignal(int) {
+    if (Capture* c = gCapture.load()) {
+        c->requestStop();
+    }
+}
+
+struct RunOptions {
+    std::string board = "sim-suit";
+    double durationS = 0;
+    std::string out;
+    double speed = 1.0;
+    bool noRecord = false;
+};
+
+bool allSimulated(const board::Board& b) {
+    for (const auto& bus : b.buses) {
+        if (bus.type != board::BusType::Sim) {
+            return false;
+        }
+    }
+    return true;
+}
+
+std::string timestampName() {
+    const std::time_t now = std::time(nullptr);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", std::localtime(&now));
+    return buf;
+}
+
+int run(const RunOptions& o) {
+    const fs::path boardPath = resolveBoardFile(o.board);
+    const auto loaded = board::loadBoardFile(boardPath);
+    if (!loaded.ok()) {
+        for (const auto& e : loaded.errors) {
+            fmt::print(stderr, "{}\n", e.str());
+        }
+        return kExitUsage;
+    }
+    const board::Board& b = *loaded.board;
+    const bool sim = allSimulated(b);
+
+    std::unique_ptr<Clock> clock;
+    if (sim) {
+        clock = std::make_unique<SimulatedClock>(MonotonicClock().now(), o.speed);
+    } else {
+        clock = std::make_unique<MonotonicClock>();
+    }
+    auto suit =
+        sim ? board::sim::buildVirtualSuit(b, *clock, nullptr) : board::openLinuxSuit(b, *clock);
+    if (!suit) {
+        fmt::print(stderr, "caphub run: {}\n", suit.error().message);
+        return kExitRuntime;
+    }
+
+    Capture capture(*suit, *clock);
+    std::unique_ptr<RecorderStage> recorder;
+    fs::path recordingPath;
+    if (!o.noRecord) {
+        const fs::path dir = o.out.empty() ? fs::path(b.outputs.recordings) : fs::path(o.out);
+        std::error_code ec;
+        fs::create_directories(dir, ec);
+        if (ec) {
+            fmt::print(stderr, "caphub run: cannot create '{}': {}\n", dir.string(), ec.message());
+            return kExitRuntime;
+        }
+        recordingPath = dir / fmt::format("{}-{}.cap", timestampName(), b.name);
+        std::ifstream in(boardPath);
+        std::stringstream text;
+        text << in.rdbuf();
+        auto writer = RecordingWriter::create(recordingPath.string(),
+                                              recordingMetadata(b, text.str(), versionLine()));
+        if (!writer) {
+            fmt::print(stderr, "caphub run: {}\n", writer.error().message);
+            return kExitRuntime;
+        }
+        recorder = std::make_unique<RecorderStage>(std::move(*writer));
+        capture.addStage(*recorder);
+    }
+
+    fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
+               b.buses.size(), b.name, sim ? "virtual suit" : "hub buses",
+               o.durationS > 0 ? fmt::format(", {:g} s", o.durationS) : ", Ctrl-C to stop");
+    gCapture.store(&capture);
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
+    capture.start(durationFromSeconds(o.durationS));
+    const CaptureStats stats = capture.wait();
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    gCapture.store(nullptr);
+
+    const double seconds = toSeconds(stats.elapsed);
+    fmt::print("\n{:<12} {:>9} {:>9} {:>7} {:>7}\n", "sensor", "samples", "rate Hz", "lost",
+               "errors");
+    for (const auto& w : capture.workers()) {
+        for (std::size_t i = 0; i < w->sensorCount(); ++i) {
+            const auto& c = w->counters(i);
+            const auto& sensor =
+                b.sensors[static_cast<std::size_t>(w->hardware().sensors[i].sensor)];
+            fmt::print("{:<12} {:>9} {:>9.1f} {:>7} {:>7}\n", sensor.name, c.samples.load(),
+                       seconds > 0 ? static_cast<double>(c.samples.load()) / seconds : 0.0,
+                       c.lost.load(), c.readErrors.load());
+        }
+    }
+    fmt::print(
+        "\n{} samples in {:.2f} s, {} dropped, {} sensor losses; latency data-ready -> "
+        "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",
+        stats.samples, seconds, stats.dropped, stats.lost, toSeconds(stats.latencyP50) * 1e3,
+        toSeconds(stats.latencyP99) * 1e3, toSeconds(stats.latencyMax) * 1e3);
+    if (recorder) {
+        std::error_code ec;
+        const auto size = fs::file_size(recordingPath, ec);
+        fmt::print(
+            "recording: {} ({} records, {} bytes){}\n", recordingPath.string(),
+            recorder->writer().stats().records, ec ? 0 : size,
+            recorder->error() != 0 ? " - stopped early: " + errnoText(recorder->error()) : "");
+        if (recorder->error() != 0) {
+            return kExitRuntime;
+        }
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+void addRunCommand(CLI::App& app, int& exitCode) {
+    auto o = std::make_shared<RunOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "run",
+        "Capture: sample the suit, record every sample and event (virtual suit for sim boards)");
+    cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+        ->capture_default_str();
+    cmd->add_option("-d,--duration", o->durationS, "Seconds to capture (0: until Ctrl-C)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("-o,--out", o->out, "Folder for the recording (default: the board's outputs)");
+    cmd->add_option("--speed", o->speed, "Virtual suit only: simulated seconds per real second")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_flag("--no-record", o->noRecord, "Do not write a recording");
+    cmd->callback([&exitCode, o] { exitCode = run(*o); });
+}
+
+}  // namespace caphub::firmware

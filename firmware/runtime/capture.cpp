@@ -1,0 +1,113 @@
+#include "firmware/runtime/capture.h"
+
+#include <algorithm>
+
+namespace caphub::firmware {
+
+namespace {
+// Latency samples kept for the percentiles (the most recent ones: ~50 s of 17 x 200 Hz).
+constexpr std::size_t kLatencyWindow = 1 << 18;
+constexpr Duration kIdlePause = std::chrono::microseconds(200);
+}  // namespace
+
+Capture::Capture(board::SuitHardware& suit, Clock& clock, BusWorker::Options options)
+    : suit_(suit), clock_(clock), latencyNs_(kLatencyWindow) {
+    for (auto& bus : suit_.buses) {
+        workers_.push_back(std::make_unique<BusWorker>(bus, clock_, options));
+    }
+}
+
+Capture::~Capture() {
+    requestStop();
+    if (pipeline_.joinable()) {
+        pipeline_.join();
+    }
+}
+
+void Capture::start(Duration duration) {
+    started_ = clock_.now();
+    const Timestamp end = duration.count() > 0 ? started_ + duration : Timestamp::max();
+    for (auto& w : workers_) {
+        w->start();
+    }
+    pipeline_ = std::thread([this, end] { pipelineLoop(end); });
+}
+
+int Capture::drain(Timestamp now) {
+    int n = 0;
+    for (auto& w : workers_) {
+        SensorSample s;
+        while (w->samples().pop(s)) {
+            for (auto* stage : stages_) {
+                stage->onSample(s);
+            }
+            latencyNs_[latencyCount_++ % kLatencyWindow] = toNs(now - s.sample.t);
+            ++stats_.samples;
+            ++n;
+        }
+        RuntimeEvent e;
+        while (w->events().pop(e)) {
+            for (auto* stage : stages_) {
+                stage->onEvent(e);
+            }
+            ++stats_.events;
+            ++n;
+        }
+    }
+    return n;
+}
+
+void Capture::pipelineLoop(Timestamp end) {
+    MonotonicClock real;
+    Timestamp nextTick{};
+    while (!stopRequested() && clock_.now() < end) {
+        const Timestamp now = clock_.now();
+        const int n = drain(now);
+        if (now >= nextTick) {
+            for (auto* stage : stages_) {
+                stage->onTick(now);
+            }
+            nextTick = now + std::chrono::milliseconds(5);
+        }
+        if (n == 0) {
+            real.sleepUntil(real.now() + kIdlePause);
+        }
+    }
+    for (auto& w : workers_) {
+        w->stop();
+    }
+    const Timestamp now = clock_.now();
+    drain(now);  // what the workers produced before they stopped
+    for (auto* stage : stages_) {
+        stage->finish(now);
+    }
+    stats_.elapsed = now - started_;
+    for (auto& w : workers_) {
+        for (std::size_t i = 0; i < w->sensorCount(); ++i) {
+            stats_.dropped += w->counters(i).dropped.load();
+            stats_.lost += w->counters(i).lost.load();
+        }
+    }
+    const std::size_t count = std::min(latencyCount_, kLatencyWindow);
+    if (count > 0) {
+        std::vector<std::int64_t> v(latencyNs_.begin(),
+                                    latencyNs_.begin() + static_cast<long>(count));
+        auto pct = [&](double p) {
+            auto it = v.begin() + static_cast<long>(p * static_cast<double>(count - 1));
+            std::nth_element(v.begin(), it, v.end());
+            return Duration{*it};
+        };
+        stats_.latencyP50 = pct(0.5);
+        stats_.latencyP99 = pct(0.99);
+        stats_.latencyMax = Duration{*std::max_element(v.begin(), v.end())};
+    }
+}
+
+CaptureStats Capture::wait() {
+    if (pipeline_.joinable()) {
+        pipeline_.join();
+    }
+    return stats_;
+}
+
+}  // namespace caphub::firmware

@@ -1,0 +1,115 @@
+#include "firmware/runtime/recorder_stage.h"
+
+#include <ctime>
+
+#include <fmt/format.h>
+
+#include "hal/core/log.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+cap::EventKind toEventKind(RuntimeEvent::Kind k) {
+    switch (k) {
+        case RuntimeEvent::Kind::SensorOnline:
+            return cap::EventKind::SensorOnline;
+        case RuntimeEvent::Kind::SensorLost:
+            return cap::EventKind::SensorLost;
+        case RuntimeEvent::Kind::SensorReset:
+            return cap::EventKind::SensorReset;
+        case RuntimeEvent::Kind::LineSilent:
+            return cap::EventKind::LineSilent;
+    }
+    return cap::EventKind::SensorLost;
+}
+
+// TOML basic string with the characters TOML requires escaped.
+std::string tomlString(const std::string& s) {
+    std::string out = "\"";
+    for (char c : s) {
+        switch (c) {
+            case '"':
+                out += "\\\"";
+                break;
+            case '\\':
+                out += "\\\\";
+                break;
+            case '\n':
+                out += "\\n";
+                break;
+            case '\t':
+                out += "\\t";
+                break;
+            default:
+                if (static_cast<unsigned char>(c) < 0x20) {
+                    out += fmt::format("\\u{:04x}", static_cast<int>(c));
+                } else {
+                    out += c;
+                }
+        }
+    }
+    return out + "\"";
+}
+
+}  // namespace
+
+void RecorderStage::check(int r) {
+    if (r < 0 && !reported_) {
+        reported_ = true;
+        log::logger(log::Category::Firmware)
+            .error(
+                "recording '{}' stopped: {}; the capture goes on, the file is readable up to "
+                "here",
+                writer_->path(), errnoText(r));
+    }
+}
+
+void RecorderStage::onSample(const SensorSample& s) {
+    if (writer_->error() == 0) {
+        check(writer_->writeRawSample(s.sensor, s.sample));
+    }
+}
+
+void RecorderStage::onEvent(const RuntimeEvent& e) {
+    if (writer_->error() == 0) {
+        check(writer_->writeEvent(e.t, toEventKind(e.kind), e.sensor, e.error, ""));
+    }
+}
+
+void RecorderStage::onTick(Timestamp) {
+    check(writer_->maybeSync());
+}
+
+void RecorderStage::finish(Timestamp) {
+    check(writer_->close());
+}
+
+std::string recordingMetadata(const board::Board& board, const std::string& boardText,
+                              const std::string& softwareVersion) {
+    const std::time_t now = std::time(nullptr);
+    char when[32];
+    std::strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+    std::string out;
+    out += "[recording]\n";
+    out += fmt::format("software = {}\n", tomlString(softwareVersion));
+    out += fmt::format("started = {}\n", tomlString(when));
+    out += "\n[board]\n";
+    out += fmt::format("name = {}\n", tomlString(board.name));
+    out += fmt::format("path = {}\n", tomlString(board.path.string()));
+    out += fmt::format("text = {}\n", tomlString(boardText));
+    out += "\n[sensors]\n";
+    out += "names = [";
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        out += fmt::format("{}{}", i == 0 ? "" : ", ", tomlString(board.sensors[i].name));
+    }
+    out += "]\nsegments = [";
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        out += fmt::format("{}\"{}\"", i == 0 ? "" : ", ",
+                           board::segmentName(board.sensors[i].segment));
+    }
+    out += "]\n";
+    return out;
+}
+
+}  // namespace caphub::firmware
