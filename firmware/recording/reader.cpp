@@ -18,7 +18,25 @@ Result<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::string
     if (f == nullptr) {
         return errnoError(errno, "cannot open recording '" + path + "'");
     }
-    std::unique_ptr<RecordingReader> r(new RecordingReader(f, path));
+    return openStream(f, path);
+}
+
+Result<std::unique_ptr<RecordingReader>> RecordingReader::fromMemory(
+    std::span<const std::uint8_t> bytes) {
+    if (bytes.empty()) {
+        return Error{EINVAL, "an empty buffer is not a caphub recording"};
+    }
+    std::FILE* f = ::fmemopen(const_cast<std::uint8_t*>(bytes.data()), bytes.size(), "rb");
+    if (f == nullptr) {
+        return errnoError(errno, "fmemopen");
+    }
+    return openStream(f, "(memory)");
+}
+
+Result<std::unique_ptr<RecordingReader>> RecordingReader::openStream(std::FILE* f,
+                                                                     std::string name) {
+    const std::string path = name;
+    std::unique_ptr<RecordingReader> r(new RecordingReader(f, std::move(name)));
     if (!r->want(kHeaderFixedBytes) || !std::equal(kMagic.begin(), kMagic.end(), r->buf_.begin())) {
         return Error{EINVAL, "'" + path + "' is not a caphub recording (no .cap header)"};
     }

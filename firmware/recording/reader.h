@@ -35,6 +35,8 @@ public:
     // Opens the file and reads the header. A damaged header is reported as damage and the
     // records are still read; only a file that is not a recording at all is refused.
     static Result<std::unique_ptr<RecordingReader>> open(const std::string& path);
+    // The same over bytes in memory (the fuzz target; recordings received over a network).
+    static Result<std::unique_ptr<RecordingReader>> fromMemory(std::span<const std::uint8_t> bytes);
 
     // The next valid record: 1, 0 at the end of the file, or -errno on a read error.
     [[nodiscard]] int next(RecordView& out);
@@ -47,6 +49,7 @@ public:
 
 private:
     RecordingReader(std::FILE* file, std::string path) : file_(file), path_(std::move(path)) {}
+    static Result<std::unique_ptr<RecordingReader>> openStream(std::FILE* file, std::string name);
 
     // Makes at least `n` bytes available from pos_; false at the end of the file.
     bool want(std::size_t n);
