@@ -8,5 +8,6 @@ namespace caphub::firmware {
 void addBoardsCommand(CLI::App& app, int& exitCode);
 void addInfoCommands(CLI::App& app, int& exitCode);
 void addRunCommand(CLI::App& app, int& exitCode);
+void addFusionCommand(CLI::App& app, int& exitCode);
 
 }  // namespace caphub::firmware

@@ -1,0 +1,257 @@
+#include "firmware/calibration_file.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+namespace caphub::firmware {
+
+namespace {
+
+// Example:
+//   format = 1
+//   [sensors.l_forearm]
+//   gyro_bias_rad_s = [0.001, -0.002, 0.0005]
+//   acc_offset_m_s2 = [0.05, -0.02, 0.1]
+//   acc_scale = [1.002, 0.998, 1.001]
+//   mag_hard_iron_ut = [12.0, -3.5, 40.2]
+//   mag_soft_iron = [[1.01, 0.02, 0.0], [0.02, 0.99, 0.01], [0.0, 0.01, 1.0]]
+//   mag_quality_pct = 0.8
+//   mag_coverage = 0.92
+
+// A TOML key: bare when it can be, else a basic string with " and \ escaped.
+std::string tomlKey(const std::string& name) {
+    bool bare = !name.empty();
+    for (char ch : name) {
+        bare = bare && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-');
+    }
+    if (bare) {
+        return name;
+    }
+    std::string out = "\"";
+    for (char ch : name) {
+        if (ch == '"' || ch == '\\') {
+            out += '\\';
+        }
+        out += ch;
+    }
+    return out + "\"";
+}
+
+std::string where(const std::string& origin, const toml::node& n) {
+    const auto& s = n.source();
+    return fmt::format("{}:{}:{}", origin, s.begin.line, s.begin.column);
+}
+
+Error at(const std::string& origin, const toml::node& n, const std::string& what) {
+    return Error{EINVAL, fmt::format("{}: {}", where(origin, n), what)};
+}
+
+Result<double> number(const std::string& origin, const toml::node& n, const std::string& key) {
+    if (auto v = n.value<double>(); v && std::isfinite(*v)) {
+        return *v;
+    }
+    return at(origin, n, fmt::format("'{}': expected a finite number", key));
+}
+
+Result<Vec3d> vec3(const std::string& origin, const toml::node& n, const std::string& key) {
+    const toml::array* a = n.as_array();
+    if (a == nullptr || a->size() != 3) {
+        return at(origin, n, fmt::format("'{}': expected an array of 3 numbers", key));
+    }
+    Vec3d v;
+    for (std::size_t i = 0; i < 3; ++i) {
+        auto x = number(origin, *a->get(i), key);
+        if (!x) {
+            return x.error();
+        }
+        v[static_cast<Eigen::Index>(i)] = *x;
+    }
+    return v;
+}
+
+Result<Eigen::Matrix3d> mat3(const std::string& origin, const toml::node& n,
+                             const std::string& key) {
+    const toml::array* a = n.as_array();
+    if (a == nullptr || a->size() != 3) {
+        return at(origin, n, fmt::format("'{}': expected 3 rows of 3 numbers", key));
+    }
+    Eigen::Matrix3d m;
+    for (std::size_t r = 0; r < 3; ++r) {
+        auto row = vec3(origin, *a->get(r), key);
+        if (!row) {
+            return row.error();
+        }
+        m.row(static_cast<Eigen::Index>(r)) = row->transpose();
+    }
+    return m;
+}
+
+Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const std::string& name,
+                                              const toml::table& t) {
+    fusion::SensorCalibration c;
+    for (const auto& [k, node] : t) {
+        const std::string key(k.str());
+        const std::string full = fmt::format("sensors.{}.{}", name, key);
+        if (key == "gyro_bias_rad_s") {
+            auto v = vec3(origin, node, full);
+            if (!v) {
+                return v.error();
+            }
+            c.gyroBiasRadS = *v;
+            c.hasGyro = true;
+        } else if (key == "acc_offset_m_s2" || key == "acc_scale") {
+            auto v = vec3(origin, node, full);
+            if (!v) {
+                return v.error();
+            }
+            if (key == "acc_scale") {
+                if ((v->array() <= 0.0).any()) {
+                    return at(origin, node, fmt::format("'{}': expected positive scales", full));
+                }
+                c.accScale = *v;
+            } else {
+                c.accOffsetMps2 = *v;
+            }
+            c.hasAccel = true;
+        } else if (key == "mag_hard_iron_ut") {
+            auto v = vec3(origin, node, full);
+            if (!v) {
+                return v.error();
+            }
+            c.magHardIronUt = *v;
+            c.hasMag = true;
+        } else if (key == "mag_soft_iron") {
+            auto m = mat3(origin, node, full);
+            if (!m) {
+                return m.error();
+            }
+            if (!(std::abs(m->determinant()) > 1e-9)) {
+                return at(origin, node, fmt::format("'{}': the matrix is singular", full));
+            }
+            c.magSoftIron = *m;
+            c.hasMag = true;
+        } else if (key == "mag_quality_pct" || key == "mag_coverage") {
+            auto v = number(origin, node, full);
+            if (!v) {
+                return v.error();
+            }
+            (key == "mag_quality_pct" ? c.magQualityPct : c.magCoverage) = *v;
+        } else {
+            return at(origin, node,
+                      fmt::format("unknown key '{}' (expected gyro_bias_rad_s, acc_offset_m_s2, "
+                                  "acc_scale, mag_hard_iron_ut, mag_soft_iron, mag_quality_pct, "
+                                  "mag_coverage)",
+                                  full));
+        }
+    }
+    return c;
+}
+
+}  // namespace
+
+Result<CalibrationSet> parseCalibration(std::string_view text, const std::string& origin) {
+    toml::table root;
+    try {
+        root = toml::parse(text, origin);
+    } catch (const toml::parse_error& e) {
+        const auto& b = e.source().begin;
+        return Error{EINVAL,
+                     fmt::format("{}:{}:{}: {}", origin, b.line, b.column, e.description())};
+    }
+    const toml::node* format = root.get("format");
+    if (format == nullptr) {
+        return Error{EINVAL, fmt::format("{}: missing 'format = {}'", origin, kCalibrationFormat)};
+    }
+    if (format->value<std::int64_t>() != std::optional<std::int64_t>(kCalibrationFormat)) {
+        return at(origin, *format,
+                  fmt::format("'format': expected {} (the version this build reads)",
+                              kCalibrationFormat));
+    }
+    CalibrationSet set;
+    for (const auto& [k, node] : root) {
+        const std::string key(k.str());
+        if (key == "format") {
+            continue;
+        }
+        if (key != "sensors") {
+            return at(origin, node,
+                      fmt::format("unknown key '{}' (expected format, sensors)", key));
+        }
+        const toml::table* sensors = node.as_table();
+        if (sensors == nullptr) {
+            return at(origin, node, "'sensors': expected a table of sensor tables");
+        }
+        for (const auto& [name, sensorNode] : *sensors) {
+            const toml::table* t = sensorNode.as_table();
+            if (t == nullptr) {
+                return at(origin, sensorNode,
+                          fmt::format("'sensors.{}': expected a table", name.str()));
+            }
+            auto c = parseSensor(origin, std::string(name.str()), *t);
+            if (!c) {
+                return c.error();
+            }
+            set.emplace(std::string(name.str()), *c);
+        }
+    }
+    return set;
+}
+
+Result<CalibrationSet> readCalibrationFile(const std::filesystem::path& path) {
+    std::ifstream in(path);
+    if (!in) {
+        return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));
+    }
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return parseCalibration(ss.str(), path.string());
+}
+
+std::string formatCalibration(const CalibrationSet& set) {
+    auto v3 = [](const Vec3d& v) {
+        return fmt::format("[{:.17g}, {:.17g}, {:.17g}]", v.x(), v.y(), v.z());
+    };
+    std::string out = fmt::format("# caphub sensor calibration\nformat = {}\n", kCalibrationFormat);
+    for (const auto& [name, c] : set) {
+        out += fmt::format("\n[sensors.{}]\n", tomlKey(name));
+        if (c.hasGyro) {
+            out += fmt::format("gyro_bias_rad_s = {}\n", v3(c.gyroBiasRadS));
+        }
+        if (c.hasAccel) {
+            out += fmt::format("acc_offset_m_s2 = {}\nacc_scale = {}\n", v3(c.accOffsetMps2),
+                               v3(c.accScale));
+        }
+        if (c.hasMag) {
+            const auto& m = c.magSoftIron;
+            out += fmt::format("mag_hard_iron_ut = {}\n", v3(c.magHardIronUt));
+            out += fmt::format("mag_soft_iron = [{}, {}, {}]\n", v3(m.row(0).transpose()),
+                               v3(m.row(1).transpose()), v3(m.row(2).transpose()));
+            out += fmt::format("mag_quality_pct = {:.17g}\nmag_coverage = {:.17g}\n",
+                               c.magQualityPct, c.magCoverage);
+        }
+    }
+    return out;
+}
+
+Result<void> writeCalibrationFile(const std::filesystem::path& path, const CalibrationSet& set) {
+    const std::string text = formatCalibration(set);
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (f == nullptr) {
+        return errnoError(-errno, fmt::format("create '{}'", path.string()));
+    }
+    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+    const int err = errno;
+    if (std::fclose(f) != 0 || !ok) {
+        return errnoError(-(ok ? errno : err), fmt::format("write '{}'", path.string()));
+    }
+    return {};
+}
+
+}  // namespace caphub::firmware

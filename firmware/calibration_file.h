@@ -1,0 +1,28 @@
+// The calibration file: per-sensor calibration (gyroscope bias, accelerometer offset and scale,
+// magnetometer hard and soft iron) in TOML, one table per sensor, read before capture and
+// applied to raw samples ahead of the filter.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include "fusion/calibration/sensor_calibration.h"
+#include "hal/core/error.h"
+
+namespace caphub::firmware {
+
+// Sensor name (as in the board file) -> its calibration.
+using CalibrationSet = std::map<std::string, fusion::SensorCalibration>;
+
+inline constexpr int kCalibrationFormat = 1;
+
+// Parses the text of a calibration file; `origin` names it in errors ("file:line:column: ...").
+Result<CalibrationSet> parseCalibration(std::string_view text, const std::string& origin);
+Result<CalibrationSet> readCalibrationFile(const std::filesystem::path& path);
+
+// The text of a calibration file (values with full double precision, so a read-back is exact).
+std::string formatCalibration(const CalibrationSet& set);
+Result<void> writeCalibrationFile(const std::filesystem::path& path, const CalibrationSet& set);
+
+}  // namespace caphub::firmware

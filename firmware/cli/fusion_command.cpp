@@ -1,0 +1,146 @@
+// caphub fusion replay: runs the orientation filter over recorded IMU data in the BROAD layout,
+// writes the estimate, and scores it against the ground truth when the file has one.
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "firmware/cli/app.h"
+#include "firmware/cli/commands.h"
+#include "firmware/io/broad_csv.h"
+#include "fusion/evaluation.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+struct ReplayOptions {
+    std::vector<std::string> inputs;
+    std::string output;
+    double rateHz = 0.0;
+    bool fixed = false;
+    bool summary = false;
+};
+
+Result<void> writeEstimate(const std::string& path, const BroadTrial& trial,
+                           const std::vector<Quatd>& q) {
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "w"), &std::fclose);
+    if (!f) {
+        return errnoError(-errno, fmt::format("create '{}'", path));
+    }
+    fmt::print(f.get(), "t,qw,qx,qy,qz\n");
+    for (std::size_t i = 0; i < q.size(); ++i) {
+        fmt::print(f.get(), "{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", trial.samples[i].tS, q[i].w(),
+                   q[i].x(), q[i].y(), q[i].z());
+    }
+    if (std::fflush(f.get()) != 0 || std::ferror(f.get())) {
+        return errnoError(-errno, fmt::format("write '{}'", path));
+    }
+    return {};
+}
+
+int runReplay(const ReplayOptions& o) {
+    if (!o.output.empty() && o.inputs.size() != 1) {
+        fmt::print(stderr, "caphub fusion replay: --out takes exactly one --in file\n");
+        return kExitUsage;
+    }
+    if (o.inputs.size() > 1 && !o.summary) {
+        fmt::print(stderr, "caphub fusion replay: several --in files need --summary\n");
+        return kExitUsage;
+    }
+    const auto variant = o.fixed ? fusion::FilterVariant::Fixed : fusion::FilterVariant::Float;
+    struct Row {
+        std::string name;
+        fusion::BroadErrors e;
+    };
+    std::vector<Row> rows;
+    for (const auto& in : o.inputs) {
+        auto trial = readBroadCsv(in);
+        if (!trial) {
+            fmt::print(stderr, "caphub fusion replay: {}\n", trial.error().message);
+            return kExitRuntime;
+        }
+        int decimation = 1;
+        if (o.rateHz > 0.0) {
+            if (o.rateHz > trial->rateHz * 1.0001) {
+                fmt::print(stderr,
+                           "caphub fusion replay: --rate-hz {:g} is above the file's rate {:g} "
+                           "Hz ({})\n",
+                           o.rateHz, trial->rateHz, in);
+                return kExitUsage;
+            }
+            decimation = std::max(1, static_cast<int>(std::lround(trial->rateHz / o.rateHz)));
+        }
+        const auto estimate = fusion::runFilter(trial->samples, trial->rateHz, decimation, variant);
+        if (!o.output.empty()) {
+            if (auto r = writeEstimate(o.output, *trial, estimate); !r) {
+                fmt::print(stderr, "caphub fusion replay: {}\n", r.error().message);
+                return kExitRuntime;
+            }
+        }
+        if (trial->hasTruth()) {
+            rows.push_back(
+                {trial->name, fusion::broadMetric(estimate, trial->truth, trial->movement)});
+        } else if (o.summary) {
+            fmt::print(stderr, "caphub fusion replay: {} has no ground truth: not scored\n", in);
+        }
+        if (rows.size() == 1 && o.inputs.size() == 1) {
+            fmt::print("filter {} at {:.2f} Hz (every {} of {:.3f} Hz)\n",
+                       o.fixed ? "fixed" : "float", trial->rateHz / decimation, decimation,
+                       trial->rateHz);
+        }
+    }
+    if (rows.empty()) {
+        return kExitOk;
+    }
+    fmt::print("{:<48} {:>9} {:>9} {:>9}\n", "trial (RMSE over movement, deg)", "total", "heading",
+               "incl");
+    double t = 0.0;
+    double h = 0.0;
+    double i = 0.0;
+    for (const auto& r : rows) {
+        fmt::print("{:<48} {:>9.3f} {:>9.3f} {:>9.3f}\n", r.name, r.e.totalDeg, r.e.headingDeg,
+                   r.e.inclinationDeg);
+        t += r.e.totalDeg;
+        h += r.e.headingDeg;
+        i += r.e.inclinationDeg;
+    }
+    if (rows.size() > 1) {
+        const double n = static_cast<double>(rows.size());
+        fmt::print("{:<48} {:>9.3f} {:>9.3f} {:>9.3f}\n", fmt::format("mean of {}", rows.size()),
+                   t / n, h / n, i / n);
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+void addFusionCommand(CLI::App& app, int& exitCode) {
+    CLI::App* fusion = app.add_subcommand(
+        "fusion", "Run the orientation filter on recorded IMU data and score it");
+    fusion->require_subcommand(1);
+    auto opts = std::make_shared<ReplayOptions>();
+    CLI::App* replay = fusion->add_subcommand(
+        "replay",
+        "Run the filter over BROAD-layout files (t, gyr, acc, mag[, opt quaternion, movement]); "
+        "print the BROAD RMSE when the file has ground truth");
+    replay->add_option("--in", opts->inputs, "Input file(s), .csv or .csv.gz")
+        ->required()
+        ->check(CLI::ExistingFile);
+    replay->add_option("--out", opts->output,
+                       "Write the estimate here: t,qw,qx,qy,qz (sensor -> earth, ENU), one row per "
+                       "input row");
+    replay
+        ->add_option("--rate-hz", opts->rateHz,
+                     "Feed every k-th sample to run at about this rate (holds the estimate "
+                     "between)")
+        ->check(CLI::PositiveNumber);
+    replay->add_flag("--fixed", opts->fixed, "Run the fixed-point (Q-format) filter");
+    replay->add_flag("--summary", opts->summary, "Several --in files: a row each and the mean");
+    replay->callback([opts, &exitCode] { exitCode = runReplay(*opts); });
+}
+
+}  // namespace caphub::firmware

@@ -1,0 +1,328 @@
+// The orientation filter of one 9-axis sensor: gyroscope strapdown in a quasi-inertial frame,
+// gravity and magnetic-north corrections applied as an earth-frame correction, and a gyroscope
+// bias tracked by a stationary Kalman filter and at rest. Templated on the scalar types so the
+// same code runs in float and in Q-format fixed point (docs/fusion.md). No heap, no I/O.
+#pragma once
+
+#include <cstdint>
+
+#include "fusion/mag_disturbance.h"
+#include "fusion/rest_detector.h"
+#include "fusion/scalar_ops.h"
+
+namespace caphub::fusion {
+
+// The scalar types of the float filter.
+struct FloatTypes {
+    using Unit = float;   // quaternion components, unit vectors, small angles (rad)
+    using Gyr = float;    // rad/s
+    using Acc = float;    // m/s^2
+    using Mag = float;    // uT
+    using MagSq = float;  // uT^2
+    using Coef = float;   // gains, periods
+    using Bias = float;   // rad/s
+};
+
+// The Q formats of the fixed-point filter and their ranges (docs/fusion.md, "Q formats").
+struct FixedTypes {
+    using Unit = Fixed<30>;  // [-2, 2), step 9.3e-10
+    using Gyr = Fixed<25>;   // [-64, 64) rad/s, step 3.0e-8 rad/s
+    using Acc = Fixed<22>;   // [-512, 512) m/s^2 (52 g), step 2.4e-7 m/s^2
+    using Mag = Fixed<20>;   // [-2048, 2048) uT, step 9.5e-7 uT; inputs clamped to +-1000 uT
+    using MagSq = Fixed<8>;  // [-8.4e6, 8.4e6) uT^2, step 0.004 uT^2
+    using Coef = Fixed<30>;  // [-2, 2), step 9.3e-10: a 1e-6 gain keeps three digits
+    using Bias = Fixed<30>;  // [-2, 2) rad/s, step 9.3e-10 rad/s: bias steps of 1e-8 rad/s count
+};
+
+// Every parameter with its unit and default. One set for all motions (docs/fusion.md).
+struct FilterParams {
+    double gyrRateHz = 285.714;  // Hz, gyroscope sample rate
+    double accRateHz = 285.714;  // Hz, accelerometer sample rate
+    double magRateHz = 285.714;  // Hz, magnetometer sample rate
+
+    // The gravity low-pass in the quasi-inertial frame: second order, state-variable form.
+    double tauAccS = 1.8;       // s, its delay at low frequency (2 zeta / omega_c)
+    double accLpDamping = 0.5;  // its damping ratio zeta (0.707 = Butterworth)
+    // Kalman model of one horizontal axis: angle error driven by gyroscope noise (and gyroscope
+    // model error), a gyroscope bias that wanders, and the filtered gravity direction as the
+    // measurement.
+    double gyrNoiseDpsRtHz = 0.3;    // deg/s/sqrt(Hz), angle random walk of the strapdown
+    double biasDriftDpsRtS = 0.002;  // deg/s/sqrt(s), random walk of the gyroscope bias
+    // Measurement noises as densities, so the time constants do not change with the rate: the
+    // noise of one sample is density / sqrt(period).
+    double inclNoiseDegRtHz = 0.03;    // deg/sqrt(Hz), noise of the filtered gravity direction
+    double headingNoiseDegRtHz = 9.5;  // deg/sqrt(Hz), noise of the magnetometer heading
+
+    double accDynamicThMps2 = 2.0;    // m/s^2, | |acc| - g | above which the sample is "dynamic"
+    double gravityMps2 = 9.81;        // m/s^2
+    double biasMaxDps = 20.0;         // deg/s, the bias estimate is clamped to this
+    double restBiasTauS = 2.0;        // s, time constant of the bias average at rest
+    double recoveryGainFactor = 4.0;  // heading gain multiplier during recovery
+    RestParams rest;
+    MagDisturbanceParams magDisturbance;
+};
+
+// Derived coefficients: what setup() computes once from the parameters and the rates.
+template <typename S>
+struct FilterCoefficients {
+    typename S::Coef gyrPeriodS{};  // s
+    typename S::Coef accLpW{};      // omega_c * period of the gravity low-pass
+    typename S::Coef accLpDamp{};   // 2 zeta
+    typename S::Coef kIncl{};       // inclination gain per accelerometer sample
+    typename S::Coef kBias{};       // bias gain per accelerometer sample, (rad/s)/rad
+    typename S::Coef kHead{};       // heading gain per magnetometer sample
+    typename S::Coef kHeadRecovery{};
+    typename S::Coef restBiasK{};   // bias average gain per gyroscope sample at rest
+    typename S::Coef dynLoSq{};     // ((g - th) / g)^2: |acc| is compared in units of g
+    typename S::Coef dynHiSq{};     // ((g + th) / g)^2
+    typename S::Bias biasMax{};     // rad/s
+    typename S::Coef invGravity{};  // s^2/m, 1 / g
+    RestCoefficients<S> rest;
+    MagDisturbanceCoefficients<S> mag;
+};
+
+template <typename S>
+struct FilterState {
+    Quat<typename S::Unit> qGyr = Quat<typename S::Unit>::identity();   // sensor -> quasi-inertial
+    Quat<typename S::Unit> qCorr = Quat<typename S::Unit>::identity();  // quasi-inertial -> earth
+    Vec3<typename S::Bias> bias;                                        // rad/s, sensor frame
+    Vec3<typename S::Acc> accLp;    // filtered gravity, quasi-inertial frame
+    Vec3<typename S::Acc> accBand;  // the low-pass's second state (its rate / omega_c)
+    Vec3<typename S::Gyr> lastGyr;  // rad/s, bias-corrected
+    RestState<S> rest;
+    MagDisturbanceState<S> mag;
+    bool inclinationInit = false;
+    bool headingInit = false;
+    bool atRest = false;
+    bool dynamic = false;
+    bool magUsed = false;
+};
+
+// Steady-state Kalman gains of the angle/bias model sampled every dtS: angle gain and bias gain
+// ((rad/s)/rad) per measurement, from the discrete Riccati equation (orientation_filter.cpp).
+struct SteadyGains {
+    double kAngle = 0.0;
+    double kBias = 0.0;
+};
+SteadyGains steadyStateGains(double dtS, double angleNoiseRadRtHz, double biasDriftRadRtS,
+                             double measNoiseRad);
+
+template <typename S>
+class OrientationFilter {
+public:
+    using Unit = typename S::Unit;
+    using Gyr = typename S::Gyr;
+    using Acc = typename S::Acc;
+    using Mag = typename S::Mag;
+    using MagSq = typename S::MagSq;
+    using Coef = typename S::Coef;
+    using Bias = typename S::Bias;
+
+    explicit OrientationFilter(const FilterParams& params = FilterParams{}) { setup(params); }
+
+    // Computes the coefficients and clears the state.
+    void setup(const FilterParams& params);
+    void resetState() { state_ = FilterState<S>{}; }
+
+    // One sample of each sensor (sensor frame; rad/s, m/s^2, uT), each at its own rate.
+    void updateGyr(const Vec3<Gyr>& gyr);
+    void updateAcc(const Vec3<Acc>& acc);
+    void updateMag(const Vec3<Mag>& mag);
+
+    // Orientation sensor -> earth (ENU).
+    Quat<Unit> quat() const { return quatMul(state_.qCorr, state_.qGyr); }
+    Vec3<Bias> bias() const { return state_.bias; }
+    bool atRest() const { return state_.atRest; }
+    bool magDisturbed() const { return state_.mag.disturbed; }
+
+    const FilterParams& params() const { return params_; }
+    const FilterCoefficients<S>& coefficients() const { return coeffs_; }
+    const FilterState<S>& state() const { return state_; }
+    void setState(const FilterState<S>& s) { state_ = s; }
+
+private:
+    void correctInclination(const Vec3<Unit>& u);
+
+    FilterParams params_;
+    FilterCoefficients<S> coeffs_;
+    FilterState<S> state_;
+};
+
+// ---------------------------------------------------------------------------------------------
+
+template <typename S>
+void OrientationFilter<S>::setup(const FilterParams& p) {
+    constexpr double kDegToRad = 0.017453292519943295;
+    params_ = p;
+    const double gyrDt = 1.0 / p.gyrRateHz;
+    const double accDt = 1.0 / p.accRateHz;
+    const double magDt = 1.0 / p.magRateHz;
+    FilterCoefficients<S> c;
+    c.gyrPeriodS = fromDouble<Coef>(gyrDt);
+    // omega_c^2 / (s^2 + 2 zeta omega_c s + omega_c^2), whose delay at DC is 2 zeta / omega_c.
+    const double omegaC = 2.0 * p.accLpDamping / p.tauAccS;
+    c.accLpW = fromDouble<Coef>(omegaC * accDt);
+    c.accLpDamp = fromDouble<Coef>(2.0 * p.accLpDamping);
+    const SteadyGains incl =
+        steadyStateGains(accDt, p.gyrNoiseDpsRtHz * kDegToRad, p.biasDriftDpsRtS * kDegToRad,
+                         p.inclNoiseDegRtHz * kDegToRad / std::sqrt(accDt));
+    c.kIncl = fromDouble<Coef>(incl.kAngle);
+    c.kBias = fromDouble<Coef>(incl.kBias);
+    const SteadyGains head = steadyStateGains(magDt, p.gyrNoiseDpsRtHz * kDegToRad, 0.0,
+                                              p.headingNoiseDegRtHz * kDegToRad / std::sqrt(magDt));
+    c.kHead = fromDouble<Coef>(head.kAngle);
+    c.kHeadRecovery = fromDouble<Coef>(std::min(1.0, head.kAngle * p.recoveryGainFactor));
+    c.restBiasK = fromDouble<Coef>(1.0 - std::exp(-gyrDt / p.restBiasTauS));
+    // |acc|^2 is compared in units of g^2 (acc / g in Acc, squared in Coef).
+    const double lo = std::max(0.0, (p.gravityMps2 - p.accDynamicThMps2) / p.gravityMps2);
+    const double hi = (p.gravityMps2 + p.accDynamicThMps2) / p.gravityMps2;
+    c.dynLoSq = fromDouble<Coef>(lo * lo);
+    c.dynHiSq = fromDouble<Coef>(std::min(1.99, hi * hi));
+    c.biasMax = fromDouble<Bias>(p.biasMaxDps * kDegToRad);
+    c.rest = makeRestCoefficients<S>(p.rest, gyrDt, accDt);
+    c.mag = makeMagDisturbanceCoefficients<S>(p.magDisturbance, magDt);
+    c.invGravity = fromDouble<Coef>(1.0 / p.gravityMps2);
+    coeffs_ = c;
+    resetState();
+}
+
+template <typename S>
+void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr) {
+    FilterState<S>& s = state_;
+    const Vec3<Gyr> b = castVec<Gyr>(s.bias);
+    restUpdateGyr(coeffs_.rest, s.rest, gyr, b);
+    s.atRest = restDetected(coeffs_.rest, s.rest);
+    if (s.atRest) {
+        // At rest the low-passed rate is the bias: average it directly (the sharper estimate).
+        s.bias = s.bias + scaled(coeffs_.restBiasK, castVec<Bias>(s.rest.gyrLp) - s.bias);
+    }
+    const Vec3<Gyr> w = gyr - b;
+    s.lastGyr = w;
+    const Vec3<Unit> theta{scalarCast<Unit>(coeffs_.gyrPeriodS * w.x),
+                           scalarCast<Unit>(coeffs_.gyrPeriodS * w.y),
+                           scalarCast<Unit>(coeffs_.gyrPeriodS * w.z)};
+    s.qGyr = renormalized(quatMul(s.qGyr, smallRotation(theta)));
+}
+
+template <typename S>
+void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc) {
+    FilterState<S>& s = state_;
+    restUpdateAcc(coeffs_.rest, s.rest, acc);
+
+    // High dynamics: |acc| far from g. Compared as (|acc| / g)^2 so that the square fits Coef.
+    const Vec3<Acc> ag = scaled(coeffs_.invGravity, acc);
+    const Coef n2 = scalarCast<Coef>(ag.x * ag.x + ag.y * ag.y + ag.z * ag.z);
+    s.dynamic = n2 < coeffs_.dynLoSq || n2 > coeffs_.dynHiSq;
+
+    const Vec3<Acc> accI = rotate(s.qGyr, acc);
+    if (!s.inclinationInit) {
+        // Initial alignment: take the first sample as gravity, exactly.
+        s.accLp = accI;
+        s.accBand = Vec3<Acc>{};
+        Vec3<Unit> u;
+        if (!normalizeInto(rotate(s.qCorr, accI), u)) {
+            return;
+        }
+        // Shortest rotation taking u to +z: [1 + u.z, u x z] normalised (halved to stay in range).
+        Quat<Unit> r{half(fromDouble<Unit>(1.0)) + half(u.z), half(u.y), -half(u.x), Unit{}};
+        if (!normalizeInto(r, r)) {
+            r = Quat<Unit>{Unit{}, fromDouble<Unit>(1.0), Unit{},
+                           Unit{}};  // upside down: half turn
+        }
+        s.qCorr = renormalized(quatMul(r, s.qCorr));
+        s.inclinationInit = true;
+        return;
+    }
+    // Semi-implicit Euler of lp' = omega_c band, band' = omega_c (x - lp - 2 zeta band): stable
+    // for omega_c dt < 1 and well conditioned in fixed point (no coefficient near 1 - 1e-6,
+    // unlike a direct-form biquad at this cut-off).
+    s.accLp = s.accLp + scaled(coeffs_.accLpW, s.accBand);
+    s.accBand =
+        s.accBand + scaled(coeffs_.accLpW, accI - s.accLp - scaled(coeffs_.accLpDamp, s.accBand));
+
+    Vec3<Unit> u;
+    if (!normalizeInto(rotate(s.qCorr, s.accLp), u)) {
+        return;
+    }
+    correctInclination(u);
+}
+
+// u: the filtered gravity direction in the earth frame. The rotation that takes it to +z has the
+// axis u x z = (u.y, -u.x, 0) and, for small errors, that vector as its rotation vector.
+template <typename S>
+void OrientationFilter<S>::correctInclination(const Vec3<Unit>& u) {
+    FilterState<S>& s = state_;
+    const Vec3<Unit> e{u.y, -u.x, Unit{}};
+    const Vec3<Unit> d{scalarCast<Unit>(coeffs_.kIncl * e.x), scalarCast<Unit>(coeffs_.kIncl * e.y),
+                       Unit{}};
+    s.qCorr = renormalized(quatMul(smallRotation(d), s.qCorr));
+
+    // The bias part of the Kalman update: the earth-frame error maps to the sensor frame through
+    // the inverse orientation. Not at rest (the rest average is sharper) and not under high
+    // dynamics (the filtered gravity is least trustworthy then).
+    if (s.atRest || s.dynamic) {
+        return;
+    }
+    const Vec3<Unit> eS = rotate(conjugate(s.qGyr), rotate(conjugate(s.qCorr), e));
+    s.bias = s.bias - scaled(coeffs_.kBias, castVec<Bias>(eS));
+    const Bias m = coeffs_.biasMax;
+    auto clamp = [m](Bias v) { return v > m ? m : (v < -m ? -m : v); };
+    s.bias = {clamp(s.bias.x), clamp(s.bias.y), clamp(s.bias.z)};
+}
+
+template <typename S>
+void OrientationFilter<S>::updateMag(const Vec3<Mag>& magIn) {
+    FilterState<S>& s = state_;
+    s.magUsed = false;
+    if (!s.inclinationInit) {
+        return;
+    }
+    // Clamp to the documented input range (keeps the squared norm inside MagSq).
+    const Mag lim = fromDouble<Mag>(1000.0);
+    auto clamp = [lim](Mag v) { return v > lim ? lim : (v < -lim ? -lim : v); };
+    const Vec3<Mag> mag{clamp(magIn.x), clamp(magIn.y), clamp(magIn.z)};
+
+    const Vec3<Mag> mE = rotate(s.qCorr, rotate(s.qGyr, mag));
+    Vec3<Unit> u;
+    if (!normalizeInto(mE, u)) {
+        return;
+    }
+    const MagSq normSq = scalarCast<MagSq>(mag.x * mag.x + mag.y * mag.y + mag.z * mag.z);
+    const Vec3<Gyr>& w = s.lastGyr;
+    const bool moving = !detail::within(w, fromDouble<Gyr>(1.0), coeffs_.mag.minRateSq);
+    const bool trusted = magClassify(coeffs_.mag, s.mag, normSq, u.z, moving);
+
+    // Heading error: the rotation about +z that brings the horizontal field to north (+y):
+    // sin = x / |h|, cos = y / |h|.
+    Unit hx = u.x;
+    Unit hy = u.y;
+    if (!normalize2(hx, hy)) {
+        return;  // field vertical: no heading information
+    }
+    if (!s.headingInit) {
+        Quat<Unit> r{half(fromDouble<Unit>(1.0)) + half(hy), Unit{}, Unit{}, half(hx)};
+        if (!normalizeInto(r, r)) {
+            r = Quat<Unit>{Unit{}, Unit{}, Unit{}, fromDouble<Unit>(1.0)};  // pointing south
+        }
+        s.qCorr = renormalized(quatMul(r, s.qCorr));
+        s.headingInit = true;
+        s.magUsed = true;
+        return;
+    }
+    if (!trusted) {
+        return;
+    }
+    // Beyond 90 deg the sine turns back; use the full step in the right direction instead.
+    const Unit one = fromDouble<Unit>(1.0);
+    const Unit err = hy < Unit{} ? (hx < Unit{} ? -one : one) : hx;
+    Coef k = coeffs_.kHead;
+    if (s.mag.recoveryLeft > 0) {
+        k = coeffs_.kHeadRecovery;
+        --s.mag.recoveryLeft;
+    }
+    const Vec3<Unit> d{Unit{}, Unit{}, scalarCast<Unit>(k * err)};
+    s.qCorr = renormalized(quatMul(smallRotation(d), s.qCorr));
+    s.magUsed = true;
+}
+
+}  // namespace caphub::fusion

@@ -1,0 +1,87 @@
+// The calibration file: a written set reads back identically; bad files name file, line, key.
+#include "firmware/calibration_file.h"
+
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+namespace caphub::firmware {
+namespace {
+
+CalibrationSet sampleSet() {
+    CalibrationSet set;
+    fusion::SensorCalibration a;
+    a.hasGyro = true;
+    a.gyroBiasRadS = Vec3d(0.001, -0.0021, 1.0 / 3.0);
+    a.hasAccel = true;
+    a.accOffsetMps2 = Vec3d(0.05, -0.02, 0.1);
+    a.accScale = Vec3d(1.002, 0.998, 1.001);
+    a.hasMag = true;
+    a.magHardIronUt = Vec3d(12.0, -3.5, 40.2);
+    a.magSoftIron << 1.01, 0.02, 0.0, 0.02, 0.99, 0.01, 0.0, 0.01, 1.0;
+    a.magQualityPct = 0.8;
+    a.magCoverage = 0.92;
+    set["l_forearm"] = a;
+    fusion::SensorCalibration b;
+    b.hasGyro = true;
+    b.gyroBiasRadS = Vec3d(-0.004, 0.0, 0.002);
+    set["pelvis 2"] = b;  // a name that needs quoting
+    return set;
+}
+
+TEST(CalibrationFile, ReadsBackWhatItWroteExactly) {
+    const auto path = std::filesystem::temp_directory_path() / "caphub_calibration_test.toml";
+    const CalibrationSet set = sampleSet();
+    ASSERT_TRUE(writeCalibrationFile(path, set));
+    auto back = readCalibrationFile(path);
+    std::filesystem::remove(path);
+    ASSERT_TRUE(back) << back.error().message;
+    ASSERT_EQ(back->size(), 2u);
+    const auto& a = back->at("l_forearm");
+    const auto& e = set.at("l_forearm");
+    EXPECT_EQ(a.gyroBiasRadS, e.gyroBiasRadS);  // 17 significant digits: exact
+    EXPECT_EQ(a.accScale, e.accScale);
+    EXPECT_EQ(a.magSoftIron, e.magSoftIron);
+    EXPECT_EQ(a.magCoverage, e.magCoverage);
+    const auto& b = back->at("pelvis 2");
+    EXPECT_TRUE(b.hasGyro);
+    EXPECT_FALSE(b.hasAccel);
+    EXPECT_FALSE(b.hasMag);
+}
+
+TEST(CalibrationFile, NamesTheLineAndKeyOfAWrongValue) {
+    const std::string text =
+        "format = 1\n"
+        "[sensors.head]\n"
+        "gyro_bias_rad_s = [0.1, 0.2]\n";
+    auto r = parseCalibration(text, "cal.toml");
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("cal.toml:3:"), std::string::npos) << r.error().message;
+    EXPECT_NE(r.error().message.find("sensors.head.gyro_bias_rad_s"), std::string::npos)
+        << r.error().message;
+}
+
+TEST(CalibrationFile, RefusesUnknownKeysAndOtherFormats) {
+    auto r = parseCalibration("format = 1\n[sensors.head]\ngyro_bias = [0, 0, 0]\n", "c.toml");
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("unknown key"), std::string::npos) << r.error().message;
+    auto v = parseCalibration("format = 7\n", "c.toml");
+    ASSERT_FALSE(v);
+    EXPECT_NE(v.error().message.find("c.toml:1:"), std::string::npos) << v.error().message;
+}
+
+TEST(CalibrationFile, ReportsTomlSyntaxErrorsWithTheirPosition) {
+    auto r = parseCalibration("format = 1\n[sensors.head\n", "c.toml");
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("c.toml:2:"), std::string::npos) << r.error().message;
+}
+
+TEST(CalibrationFile, RefusesASingularSoftIronMatrix) {
+    auto r = parseCalibration(
+        "format = 1\n[sensors.a]\nmag_soft_iron = [[1, 0, 0], [0, 0, 0], [0, 0, 1]]\n", "c.toml");
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("singular"), std::string::npos) << r.error().message;
+}
+
+}  // namespace
+}  // namespace caphub::firmware

@@ -1,0 +1,139 @@
+// Sensor calibration algorithms: gyroscope bias at rest, six-position accelerometer, magnetometer
+// ellipsoid fit with its coverage check and quality figure.
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "fusion/calibration/accel_six_position.h"
+#include "fusion/calibration/ellipsoid_fit.h"
+#include "fusion/calibration/gyro_bias.h"
+#include "fusion/calibration/sensor_calibration.h"
+
+namespace caphub::fusion {
+namespace {
+
+constexpr double kDeg = 0.017453292519943295;
+
+std::vector<Vec3d> noisy(const Vec3d& mean, double sigma, int n, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> d(0.0, sigma);
+    std::vector<Vec3d> out;
+    for (int i = 0; i < n; ++i) {
+        out.push_back(mean + Vec3d(d(rng), d(rng), d(rng)));
+    }
+    return out;
+}
+
+TEST(GyroBiasCalibration, IsTheMeanRateAtRest) {
+    const Vec3d bias = Vec3d(0.7, -0.2, 1.5) * kDeg;
+    const auto s = noisy(bias, 0.1 * kDeg, 2000, 3);
+    auto r = estimateGyroBias(s);
+    ASSERT_TRUE(r) << r.error().message;
+    // Standard error of the mean: 0.1 deg/s / sqrt(2000) = 0.0022 deg/s; 0.01 is 4.5 sigma.
+    EXPECT_LT((r->biasRadS - bias).cwiseAbs().maxCoeff() / kDeg, 0.01);
+    EXPECT_NEAR(r->stdRadS.x() / kDeg, 0.1, 0.01);
+}
+
+TEST(GyroBiasCalibration, RefusesARecordingWithMotion) {
+    auto s = noisy(Vec3d::Zero(), 0.05 * kDeg, 1000, 4);
+    for (int i = 300; i < 400; ++i) {
+        s[i].z() += 30.0 * kDeg;  // someone turned the sensor
+    }
+    auto r = estimateGyroBias(s);
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("moved"), std::string::npos) << r.error().message;
+}
+
+TEST(AccelSixPosition, RecoversOffsetAndScalePerAxis) {
+    const Vec3d offset(0.12, -0.08, 0.2);
+    const Vec3d scale(1.01, 0.985, 1.02);
+    std::array<Vec3d, 6> pos;
+    const std::array<Vec3d, 6> dirs = {Vec3d::UnitZ(),  -Vec3d::UnitX(), Vec3d::UnitY(),
+                                       -Vec3d::UnitZ(), Vec3d::UnitX(),  -Vec3d::UnitY()};
+    for (int i = 0; i < 6; ++i) {
+        pos[i] = (dirs[i] * 9.81).cwiseProduct(scale) + offset;
+    }
+    auto r = calibrateAccelSixPosition(pos);
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_LT((r->offsetMps2 - offset).cwiseAbs().maxCoeff(), 1e-12);  // exact data, exact fit
+    EXPECT_LT((r->scale - scale).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_LT(r->residualMps2, 1e-9);
+}
+
+TEST(AccelSixPosition, RefusesAnAxisThatPointsUpTwice) {
+    std::array<Vec3d, 6> pos = {Vec3d(0, 0, 9.8),  Vec3d(0, 0, -9.8), Vec3d(9.8, 0, 0),
+                                Vec3d(-9.8, 0, 0), Vec3d(0, 9.8, 0),  Vec3d(0.3, 0, 9.8)};
+    auto r = calibrateAccelSixPosition(pos);
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("+z up"), std::string::npos) << r.error().message;
+}
+
+// Field samples over the whole sphere of orientations, distorted by soft and hard iron.
+std::vector<Vec3d> distortedSphere(const Eigen::Matrix3d& soft, const Vec3d& hard, double normUt,
+                                   double noiseUt, int n, bool halfOnly) {
+    std::mt19937 rng(7);
+    std::normal_distribution<double> d(0.0, 1.0);
+    std::vector<Vec3d> out;
+    while (static_cast<int>(out.size()) < n) {
+        Vec3d u(d(rng), d(rng), d(rng));
+        u.normalize();
+        if (halfOnly && u.z() < 0.3) {
+            continue;
+        }
+        out.push_back(soft * (u * normUt) + hard + Vec3d(d(rng), d(rng), d(rng)) * noiseUt);
+    }
+    return out;
+}
+
+TEST(EllipsoidFit, RecoversSimulatedHardAndSoftIronWithin2Percent) {
+    Eigen::Matrix3d soft;  // symmetric, stretches up to 20 % and couples axes
+    soft << 1.15, 0.08, -0.05, 0.08, 0.9, 0.04, -0.05, 0.04, 1.05;
+    const Vec3d hard(25.0, -12.0, 40.0);
+    const double norm = 49.0;
+    const auto m = distortedSphere(soft, hard, norm, 0.3, 2000, false);
+    EllipsoidFitParams p;
+    p.fieldNormUt = norm;
+    auto r = fitEllipsoid(m, p);
+    ASSERT_TRUE(r) << r.error().message;
+    // The correction must undo the distortion: softIron * soft = I. 2 % of each (unit) entry.
+    const Eigen::Matrix3d undo = r->softIron * soft;
+    EXPECT_LT((undo - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 0.02) << undo;
+    EXPECT_LT((r->hardIronUt - hard).norm() / hard.norm(), 0.02) << r->hardIronUt.transpose();
+    // Noise 0.3 uT on 49 uT is 0.6 %: the quality figure reports about that.
+    EXPECT_LT(r->qualityPct, 1.0);
+    EXPECT_GT(r->coverage, 0.99);
+}
+
+TEST(EllipsoidFit, RefusesSamplesThatCoverOnlyPartOfTheSphere) {
+    const auto m =
+        distortedSphere(Eigen::Matrix3d::Identity(), Vec3d(5, 5, 5), 49.0, 0.3, 500, true);
+    auto r = fitEllipsoid(m);
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("cover"), std::string::npos) << r.error().message;
+}
+
+TEST(EllipsoidFit, CoverageCountsTheDirectionsVisited) {
+    const std::vector<Vec3d> six = {Vec3d::UnitX(),  -Vec3d::UnitX(), Vec3d::UnitY(),
+                                    -Vec3d::UnitY(), Vec3d::UnitZ(),  -Vec3d::UnitZ()};
+    EXPECT_DOUBLE_EQ(directionCoverage(six), 6.0 / 26.0);
+}
+
+TEST(SensorCalibration, AppliesEachPartToItsSensorOnly) {
+    SensorCalibration c;
+    c.hasGyro = true;
+    c.gyroBiasRadS = Vec3d(0.01, 0.0, 0.0);
+    c.hasMag = true;
+    c.magHardIronUt = Vec3d(1, 2, 3);
+    c.magSoftIron = Eigen::Vector3d(2, 2, 2).asDiagonal();
+    ImuSample raw;
+    raw.gyrRadS = Vec3d(0.01, 0.5, 0.0);
+    raw.accMps2 = Vec3d(0, 0, 9.8);
+    raw.magUt = Vec3d(2, 2, 2);
+    const ImuSample s = c.apply(raw);
+    EXPECT_EQ(s.gyrRadS, Vec3d(0.0, 0.5, 0.0));
+    EXPECT_EQ(s.accMps2, raw.accMps2);  // no accelerometer calibration: unchanged
+    EXPECT_EQ(s.magUt, Vec3d(2, 0, -2));
+}
+
+}  // namespace
+}  // namespace caphub::fusion
