@@ -15,6 +15,7 @@
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/recorder_stage.h"
 #include "hal/core/log.h"
 
@@ -105,6 +106,8 @@ int run(const RunOptions& o) {
         recorder = std::make_unique<RecorderStage>(std::move(*writer));
         capture.addStage(*recorder);
     }
+    FusionStage fusionStage(b, recorder ? &recorder->writer() : nullptr);
+    capture.addStage(fusionStage);
 
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
                b.buses.size(), b.name, sim ? "virtual suit" : "hub buses",
@@ -131,6 +134,7 @@ int run(const RunOptions& o) {
                        c.lost.load(), c.readErrors.load());
         }
     }
+    fmt::print("\n{} orientation updates", fusionStage.updates());
     fmt::print(
         "\n{} samples in {:.2f} s, {} dropped, {} sensor losses; latency data-ready -> "
         "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",

@@ -19,6 +19,7 @@ public:
     void finish(Timestamp now) override;
 
     const RecordingWriter& writer() const { return *writer_; }
+    RecordingWriter& writer() { return *writer_; }
     // The error that stopped the recording (0: none).
     int error() const { return writer_->error(); }
 

@@ -1,0 +1,58 @@
+#include "firmware/runtime/fusion_stage.h"
+
+namespace caphub::firmware {
+
+FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer)
+    : latest_(board.sensors.size(), Eigen::Quaternionf::Identity()),
+      valid_(board.sensors.size(), false),
+      writer_(writer) {
+    for (const auto& s : board.sensors) {
+        fusion::FilterParams p;
+        p.gyrRateHz = s.achievedOdrHz;
+        p.accRateHz = s.achievedOdrHz;
+        p.magRateHz = s.magOdrHz > 0 ? s.magOdrHz : s.achievedOdrHz;
+        filters_.push_back(std::make_unique<Filter>(p));
+    }
+}
+
+void FusionStage::onSample(const SensorSample& s) {
+    if (s.sensor < 0 || static_cast<std::size_t>(s.sensor) >= filters_.size()) {
+        return;
+    }
+    Filter& f = *filters_[static_cast<std::size_t>(s.sensor)];
+    const auto& in = s.sample;
+    f.updateGyr({in.gyrRadps.x(), in.gyrRadps.y(), in.gyrRadps.z()});
+    f.updateAcc({in.accMps2.x(), in.accMps2.y(), in.accMps2.z()});
+    if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
+        (in.flags & hal::ImuSample::kMagOverflow) == 0) {
+        f.updateMag({in.magUt.x(), in.magUt.y(), in.magUt.z()});
+    }
+    const auto q = f.quat();
+    Eigen::Quaternionf out(q.w, q.x, q.y, q.z);
+    out.normalize();
+    latest_[static_cast<std::size_t>(s.sensor)] = out;
+    valid_[static_cast<std::size_t>(s.sensor)] = true;
+    ++updates_;
+    if (writer_ != nullptr && writer_->error() == 0) {
+        (void)writer_->writeOrientation(s.sensor, in.t, out);
+    }
+}
+
+void FusionStage::onEvent(const RuntimeEvent& e) {
+    // A sensor that was lost restarts from its reset state: its filter state is stale.
+    if (e.kind == RuntimeEvent::Kind::SensorLost && e.sensor >= 0 &&
+        static_cast<std::size_t>(e.sensor) < filters_.size()) {
+        valid_[static_cast<std::size_t>(e.sensor)] = false;
+    }
+}
+
+bool FusionStage::orientation(int sensor, Eigen::Quaternionf& q) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size() ||
+        !valid_[static_cast<std::size_t>(sensor)]) {
+        return false;
+    }
+    q = latest_[static_cast<std::size_t>(sensor)];
+    return true;
+}
+
+}  // namespace caphub::firmware

@@ -1,0 +1,38 @@
+// The pipeline stage that fuses: one orientation filter per sensor, fed each sample at the
+// sensor's own rates (the magnetometer only when its reading is fresh), recording every
+// sensor's orientation next to its raw samples.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "board/board.h"
+#include "firmware/recording/writer.h"
+#include "firmware/runtime/capture.h"
+#include "fusion/orientation_filter.h"
+
+namespace caphub::firmware {
+
+class FusionStage final : public PipelineStage {
+public:
+    using Filter = fusion::OrientationFilter<fusion::FloatTypes>;
+
+    // writer may be null (no recording).
+    FusionStage(const board::Board& board, RecordingWriter* writer);
+
+    void onSample(const SensorSample& s) override;
+    void onEvent(const RuntimeEvent& e) override;
+
+    // The latest orientation of a sensor (sensor -> ENU), and whether it has one.
+    bool orientation(int sensor, Eigen::Quaternionf& q) const;
+    std::uint64_t updates() const { return updates_; }
+
+private:
+    std::vector<std::unique_ptr<Filter>> filters_;
+    std::vector<Eigen::Quaternionf> latest_;
+    std::vector<bool> valid_;
+    RecordingWriter* writer_;
+    std::uint64_t updates_ = 0;
+};
+
+}  // namespace caphub::firmware
