@@ -14,6 +14,10 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev
   # Kernel-level tests: Debian's kernel booted under qemu with a busybox initramfs.
   qemu-system-x86 busybox-static cpio kmod xz-utils
+  # Cross builds for the board (sysroot: toolchain/make-sysroot.sh), their tests under qemu-user,
+  # .deb packages, and caphub-flash's offline image editing (sfdisk, mtools, debugfs).
+  g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev fakeroot file
+  fdisk dosfstools mtools e2fsprogs
 )
 
 missing=()

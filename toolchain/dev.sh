@@ -3,13 +3,14 @@
 #   dev.sh run         bootstrap, build (release), run caphub on the virtual suit
 #   dev.sh test        bootstrap, build (debug), run every test with ctest
 #   dev.sh test asan   the same under AddressSanitizer + UndefinedBehaviorSanitizer
+#   dev.sh test aarch64   cross build for arm64, unit tests under qemu-aarch64 (armhf: qemu-arm)
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 
 usage() {
-    sed -n '2,5p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+    sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
     exit 2
 }
 
@@ -40,7 +41,12 @@ run)
     ;;
 test)
     preset=${2:-debug}
-    case "$preset" in debug | asan | release) ;; *) usage ;; esac
+    case "$preset" in
+    debug | asan | release) ;;
+    aarch64) bash toolchain/bootstrap.sh && bash toolchain/make-sysroot.sh arm64 ;;
+    armhf) bash toolchain/bootstrap.sh && bash toolchain/make-sysroot.sh armhf ;;
+    *) usage ;;
+    esac
     build "$preset"
     ctest --preset "$preset"
     ;;

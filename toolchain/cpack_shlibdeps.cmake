@@ -1,0 +1,58 @@
+# Run by cpack for a cross build (CPACK_PROJECT_CONFIG_FILE): the package's Depends from the
+# shared libraries the program needs, as dpkg-shlibdeps would find them with shlibs files.
+# Each DT_NEEDED soname (libfmt.so.9) is looked up in the shlibs files of the sysroot's packages
+# (kept by make-sysroot.sh in var/lib/caphub-sysroot/info), whose lines read
+# "libfmt 9 libfmt9 (>= 9.1.0+ds1)"; the dependency is the rest of the matching line.
+if(NOT CPACK_GENERATOR STREQUAL "DEB")
+    return()
+endif()
+
+execute_process(COMMAND "${CPACK_CAPHUB_OBJDUMP}" -p "${CPACK_CAPHUB_PROGRAM}"
+                OUTPUT_VARIABLE dump RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "cpack_shlibdeps: cannot read ${CPACK_CAPHUB_PROGRAM} with ${CPACK_CAPHUB_OBJDUMP}")
+endif()
+string(REGEX MATCHALL "NEEDED +[^\n]+" needed_lines "${dump}")
+
+file(GLOB shlibs_files "${CPACK_CAPHUB_SYSROOT}/var/lib/caphub-sysroot/info/*.shlibs")
+set(shlibs_text "")
+foreach(f IN LISTS shlibs_files)
+    file(READ "${f}" t)
+    string(APPEND shlibs_text "${t}\n")
+endforeach()
+
+set(deps "${CPACK_DEBIAN_PACKAGE_DEPENDS}")
+foreach(line IN LISTS needed_lines)
+    string(REGEX REPLACE "NEEDED +" "" soname "${line}")
+    string(STRIP "${soname}" soname)
+    # libNAME.so.VERSION, or libNAME-VERSION.so
+    if(soname MATCHES "^(.+)\\.so\\.([0-9.]+)$")
+        set(lib "${CMAKE_MATCH_1}")
+        set(ver "${CMAKE_MATCH_2}")
+    elseif(soname MATCHES "^(.+)-([0-9.]+)\\.so$")
+        set(lib "${CMAKE_MATCH_1}")
+        set(ver "${CMAKE_MATCH_2}")
+    else()
+        message(FATAL_ERROR "cpack_shlibdeps: cannot parse the soname ${soname}")
+    endif()
+    string(REGEX REPLACE "([.+*?^$()\\[\\]|])" "\\\\\\1" lib_re "${lib}")
+    string(REGEX REPLACE "([.+*?^$()\\[\\]|])" "\\\\\\1" ver_re "${ver}")
+    if(NOT shlibs_text MATCHES "(^|\n)(udeb: )?${lib_re} ${ver_re} ([^\n]+)")
+        message(FATAL_ERROR "cpack_shlibdeps: no shlibs entry for ${soname} in ${CPACK_CAPHUB_SYSROOT}")
+    endif()
+    set(dep "${CMAKE_MATCH_3}")
+    if(shlibs_text MATCHES "(^|\n)${lib_re} ${ver_re} ([^\n]+)")
+        set(dep "${CMAKE_MATCH_2}")
+    endif()
+    string(STRIP "${dep}" dep)
+    if(deps STREQUAL "")
+        set(deps "${dep}")
+    elseif(NOT (", ${deps}, " MATCHES ", ${dep}, " OR deps STREQUAL dep))
+        string(FIND ", ${deps}, " ", ${dep}, " found)
+        if(found EQUAL -1)
+            string(APPEND deps ", ${dep}")
+        endif()
+    endif()
+endforeach()
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "${deps}")
+message(STATUS "cpack_shlibdeps: Depends: ${deps}")
