@@ -144,10 +144,10 @@ while IFS= read -r -d '' link; do
 done < <(find "$sysroot.tmp" -type l -print0)
 
 # Some CMake package files name their libraries by absolute path (libjpeg-turbo's
-# "/usr/lib/<triplet>/libjpeg.so.62.3.0"): point those at the sysroot.
+# "/usr/lib/<triplet>/libjpeg.so.62.3.0", toml++'s prefix "/usr"): point those at the sysroot.
 while IFS= read -r -d '' f; do
-    if grep -q '"/usr/' "$f"; then
-        sed -i 's|"/usr/|"${CMAKE_SYSROOT}/usr/|g' "$f"
+    if grep -q '"/usr[/"]' "$f"; then
+        sed -i -e 's|"/usr/|"${CMAKE_SYSROOT}/usr/|g' -e 's|"/usr"|"${CMAKE_SYSROOT}/usr"|g' "$f"
     fi
 done < <(find "$sysroot.tmp/usr/lib" "$sysroot.tmp/usr/share" -path '*/cmake/*' -name '*.cmake' -print0)
 

@@ -352,6 +352,11 @@ TEST(Recording, KillNineAtTwentyRandomMomentsLosesNothingDurable) {
             durable = v;
         }
         ::close(pipeFds[0]);
+        if (!fs::exists(path)) {
+            // Killed before it created the file (a slow start, e.g. under an emulator).
+            ASSERT_EQ(durable, 0u) << "trial " << trial;
+            continue;
+        }
         const ReadBack rb = readBack(path);
         ASSERT_GE(rb.seqs.size(), durable) << "trial " << trial;
         for (std::size_t i = 0; i < rb.seqs.size(); ++i) {
