@@ -1,0 +1,86 @@
+// Calibration of the sensors to the body: each sensor's mounting on its segment from a known
+// pose (T-pose, N-pose), from two poses (T+N, which needs no per-sensor heading for the arms),
+// and the yaw-only heading reset. The maths and the procedure: docs/body-calibration.md.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "fusion/body/kinematics.h"
+#include "hal/core/error.h"
+
+namespace caphub::body {
+
+enum class CalibrationMethod : std::uint8_t { None, TPose, NPose, TPlusN };
+std::string_view toString(CalibrationMethod m);
+
+// Which segments carry a sensor: bit i for segment i.
+using SegmentMask = std::uint32_t;
+constexpr SegmentMask bit(Segment s) {
+    return SegmentMask{1} << idx(s);
+}
+constexpr bool has(SegmentMask m, int segment) {
+    return (m >> segment) & 1U;
+}
+
+// Sensor orientations (q_ENU_sensor, from fusion), one per segment that has a sensor.
+struct SensorFrame {
+    std::array<Quatd, kSegmentCount> qEnuSensor;
+    SegmentMask mask = 0;
+    SensorFrame() { qEnuSensor.fill(Quatd::Identity()); }
+};
+
+// The result of a calibration; it is written into recordings (toText / parseBodyCalibration).
+struct BodyCalibration {
+    CalibrationMethod method = CalibrationMethod::None;
+    std::int64_t tNs = 0;                       // when it was taken, capture clock
+    SegmentMask mask = 0;                       // the segments calibrated
+    std::array<Quatd, kSegmentCount> mounting;  // q_segment_sensor
+    // The capture world: the skeleton world frame turned about up by headingRad, so that the
+    // subject faced +Z at calibration. q_ENU_world = R_ENU_world * Ry(headingRad).
+    double headingRad = 0;
+    BodyCalibration() { mounting.fill(Quatd::Identity()); }
+    Quatd qEnuWorld() const;
+};
+
+// R_ENU_world of docs/frames.md (world X west, Y up, Z north).
+Quatd enuFromSkeletonWorld();
+
+// The segment orientations of the reference poses, in the capture world.
+enum class ReferencePoseKind : std::uint8_t { T, N };
+Quatd referenceOrientation(ReferencePoseKind pose, Segment s);
+
+struct CalibrationOptions {
+    // The subject's heading at calibration (rad about up, from north as world +Z). Unknown:
+    // estimated from the sensors through their nominal mountings (the circular mean).
+    std::optional<double> headingRad;
+    std::array<Quatd, kSegmentCount> nominalMounting;  // from the board file
+    CalibrationOptions() { nominalMounting.fill(Quatd::Identity()); }
+};
+
+// Single-pose calibration (the paper's T-pose; or the N-pose): q_segment_sensor =
+// q_world_segment(pose)^-1 q_ENU_world^-1 q_ENU_sensor. Errors for no sensors or a quaternion
+// that is not finite or not of unit length (within 1e-3).
+Result<BodyCalibration> calibrateOnePose(ReferencePoseKind pose, const SensorFrame& frame,
+                                         const CalibrationOptions& options, std::int64_t tNs = 0);
+
+// T+N: arm segments (whose orientation differs between the poses) from the two gravity
+// directions alone (TRIAD: the hanging arm's long axis from the N-pose, up from the T-pose);
+// the other segments from the mean of the two single-pose results. Both frames must have the
+// same sensors.
+Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorFrame& nPose,
+                                         const CalibrationOptions& options, std::int64_t tNs = 0);
+
+// Yaw-only heading reset, any time, no pose needed: turns the capture world about up so that
+// the pelvis of the given (solved) pose faces +Z. Mountings are kept.
+void headingReset(BodyCalibration& cal, const Pose& current);
+
+// Text form for recordings: one "key value" per line (docs/body-calibration.md).
+std::string toText(const BodyCalibration& cal);
+// Errors read "<sourceName>:<line>: <what was expected>".
+Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_view sourceName);
+
+}  // namespace caphub::body

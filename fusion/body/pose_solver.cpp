@@ -1,0 +1,133 @@
+#include "fusion/body/pose_solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace caphub::body {
+
+namespace {
+
+using S = Segment;
+
+// The spine from the root up: the chain whose unsensored members share the rotation between
+// the nearest sensors around them.
+constexpr std::array<S, 5> kSpine = {S::Pelvis, S::L5, S::T12, S::C7, S::Skull};
+
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+}  // namespace
+
+PoseSolver::PoseSolver(SegmentMask sensors, const PoseSolverOptions& options)
+    : sensors_(sensors), options_(options) {
+    inverseMounting_.fill(Quatd::Identity());
+    for (int i = 0; i < kSegmentCount; ++i) {
+        rules_[static_cast<std::size_t>(i)] =
+            has(sensors, i) ? SegmentRule::Sensor : SegmentRule::FollowParent;
+    }
+    // Spine: each unsensored member between two sensored ones takes its share, in proportion to
+    // the number of joints, of the rotation between them.
+    for (std::size_t a = 0; a < kSpine.size(); ++a) {
+        if (!has(sensors, idx(kSpine[a]))) {
+            continue;
+        }
+        std::size_t b = a + 1;
+        while (b < kSpine.size() && !has(sensors, idx(kSpine[b]))) {
+            ++b;
+        }
+        if (b == kSpine.size()) {
+            break;
+        }
+        for (std::size_t m = a + 1; m < b; ++m) {
+            const auto u = static_cast<std::size_t>(idx(kSpine[m]));
+            rules_[u] = SegmentRule::SpineShare;
+            shares_[u] = {idx(kSpine[a]), idx(kSpine[b]),
+                          static_cast<double>(m - a) / static_cast<double>(b - a)};
+        }
+    }
+    if (!has(sensors, idx(S::Pelvis))) {
+        for (S s : kSpine) {
+            if (has(sensors, idx(s))) {
+                rootSource_ = idx(s);
+                break;
+            }
+        }
+    }
+}
+
+void PoseSolver::setCalibration(const BodyCalibration& cal) {
+    cal_ = cal;
+    qWorldEnu_ = cal.qEnuWorld().conjugate();
+    for (int i = 0; i < kSegmentCount; ++i) {
+        inverseMounting_[static_cast<std::size_t>(i)] =
+            cal.mounting[static_cast<std::size_t>(i)].conjugate();
+    }
+}
+
+void PoseSolver::solve(const SensorFrame& frame, Pose& pose, JointLimitReport* report) const {
+    // Sensor-driven segments: q_world_segment = q_world_ENU q_ENU_sensor q_segment_sensor^-1.
+    for (int i = 0; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        if (rules_[u] == SegmentRule::Sensor) {
+            pose.qWorld[u] = (qWorldEnu_ * frame.qEnuSensor[u] * inverseMounting_[u]).normalized();
+        }
+    }
+    if (rules_[0] != SegmentRule::Sensor) {
+        pose.qWorld[0] = rootSource_ >= 0 ? pose.qWorld[static_cast<std::size_t>(rootSource_)]
+                                          : Quatd::Identity();
+    }
+    // The rest, parents first.
+    for (int i = 1; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        const auto p = static_cast<std::size_t>(parentOf(i));
+        switch (rules_[u]) {
+            case SegmentRule::Sensor:
+                break;
+            case SegmentRule::FollowParent:
+                pose.qWorld[u] = pose.qWorld[p];
+                break;
+            case SegmentRule::SpineShare: {
+                const Share& sh = shares_[u];
+                const Quatd& qa = pose.qWorld[static_cast<std::size_t>(sh.from)];
+                const Quatd rel = qa.conjugate() * pose.qWorld[static_cast<std::size_t>(sh.to)];
+                pose.qWorld[u] =
+                    qa * fromRotationVector<double>(toRotationVector(rel) * sh.fraction);
+                break;
+            }
+        }
+    }
+    localFromWorld(pose);
+    if (report == nullptr) {
+        return;
+    }
+    report->violations = 0;
+    report->excessDeg[0] = 0;
+    for (int i = 1; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        if (options_.clampToLimits) {
+            // Clamping a parent changes its world orientation; the child's sensor still says
+            // where the child is, so its joint rotation is taken against the clamped parent.
+            pose.qLocal[u] =
+                pose.qWorld[static_cast<std::size_t>(parentOf(i))].conjugate() * pose.qWorld[u];
+        }
+        const double e =
+            applyJointLimits(joints()[u].limits, pose.qLocal[u], options_.clampToLimits);
+        report->excessDeg[u] = e;
+        report->violations += e > 0 ? 1 : 0;
+        if (options_.clampToLimits && e > 0) {
+            pose.qWorld[u] = pose.qWorld[static_cast<std::size_t>(parentOf(i))] * pose.qLocal[u];
+        }
+    }
+}
+
+double applyJointLimits(const JointLimits& limits, Quatd& qLocal, bool clamp) {
+    const Vec3d rvDeg = toRotationVector(qLocal) * kRadToDeg;
+    const Vec3d clamped = rvDeg.cwiseMax(limits.minDeg).cwiseMin(limits.maxDeg);
+    const double excess = (rvDeg - clamped).norm();
+    if (clamp && excess > 0) {
+        qLocal = fromRotationVector<double>(clamped / kRadToDeg);
+    }
+    return excess;
+}
+
+}  // namespace caphub::body

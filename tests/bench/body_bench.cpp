@@ -1,0 +1,74 @@
+// The full-body solve per frame on the 17-sensor suit: orientations and joint rotations with
+// limit checks, FK, joint rates, the five end-effector Jacobians and twists, foot contacts and
+// root translation (BodySolver::solve).
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "fusion/body/body_solver.h"
+
+namespace {
+
+using namespace caphub;
+using namespace caphub::body;
+
+constexpr SegmentMask kFullSuit =
+    ((SegmentMask{1} << kSegmentCount) - 1) &
+    ~(bit(Segment::L5) | bit(Segment::C7) | bit(Segment::LMiddistal) | bit(Segment::RMiddistal));
+
+// A second of smooth motion at 100 Hz: every joint swings sinusoidally about a random axis.
+std::vector<SensorFrame> makeFrames(const std::array<Quatd, kSegmentCount>& mounting) {
+    std::mt19937 rng(1);
+    std::normal_distribution<double> n(0, 1);
+    std::array<Vec3d, kSegmentCount> axis;
+    for (auto& a : axis) {
+        a = Vec3d(n(rng), n(rng), n(rng)).normalized();
+    }
+    BodyCalibration c;
+    const Quatd qEnuWorld = c.qEnuWorld();
+    std::vector<SensorFrame> frames(100);
+    for (int k = 0; k < 100; ++k) {
+        Pose p;
+        for (int i = 0; i < kSegmentCount; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            p.qLocal[u] = fromAxisAngle<double>(axis[u], 0.4 * std::sin(2 * M_PI * k / 100.0 + i));
+        }
+        worldFromLocal(p);
+        frames[static_cast<std::size_t>(k)].mask = kFullSuit;
+        for (int i = 0; i < kSegmentCount; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            frames[static_cast<std::size_t>(k)].qEnuSensor[u] =
+                qEnuWorld * p.qWorld[u] * mounting[u];
+        }
+    }
+    return frames;
+}
+
+void BM_FullBodySolve(benchmark::State& state) {
+    board::SubjectConfig subject;
+    const Skeleton skeleton(*dimensionsFromSubject(subject));
+    std::mt19937 rng(2);
+    std::normal_distribution<double> n(0, 1);
+    std::array<Quatd, kSegmentCount> mounting;
+    for (auto& q : mounting) {
+        q = Quatd(Eigen::Vector4d(n(rng), n(rng), n(rng), n(rng)).normalized());
+    }
+    const auto frames = makeFrames(mounting);
+    BodyCalibration cal;
+    cal.mask = kFullSuit;
+    cal.mounting = mounting;
+    BodySolver solver(skeleton, kFullSuit);
+    solver.setCalibration(cal);
+    std::size_t k = 0;
+    for (auto _ : state) {
+        const Pose& p = solver.solve(frames[k], 0.01);
+        benchmark::DoNotOptimize(p.positionM[0]);
+        k = (k + 1) % frames.size();
+    }
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_FullBodySolve);
+
+}  // namespace

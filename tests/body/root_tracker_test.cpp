@@ -1,0 +1,127 @@
+// Root translation: the stance foot stays where it touched the floor, standing still does not
+// drift, and a jump has a flight phase that ends on the floor.
+#include "fusion/body/root_tracker.h"
+
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+#include "fusion/body/body_solver.h"
+#include "tests/body/test_poses.h"
+
+namespace caphub::body {
+namespace {
+
+using S = Segment;
+constexpr double kDeg = std::numbers::pi / 180;
+
+Dimensions dims() {
+    board::SubjectConfig s;
+    s.heightM = 1.75;
+    return *dimensionsFromSubject(s);
+}
+
+// Sensor frames with identity mountings and heading 0 for a pose given by joint rotations.
+SensorFrame frameOf(Pose p) {
+    worldFromLocal(p);
+    std::array<Quatd, kSegmentCount> m;
+    m.fill(Quatd::Identity());
+    return testing::sensorsFor(p, m, testing::kFullSuit);
+}
+
+BodySolver makeSolver(const Dimensions& d) {
+    BodySolver s(Skeleton(d), testing::kFullSuit);
+    BodyCalibration cal;
+    cal.mask = testing::kFullSuit;
+    s.setCalibration(cal);
+    return s;
+}
+
+TEST(RootTracker, StandingStillKeepsTheRootInPlace) {
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    s.resetRoot(0.5, -1.0);
+    for (int k = 0; k < 200; ++k) {
+        s.solve(frameOf(Pose{}), 0.01);
+    }
+    const Vec3d r = s.pose().positionM[0];
+    EXPECT_NEAR(r.x(), 0.5, 1e-12);
+    EXPECT_NEAR(r.z(), -1.0, 1e-12);
+    // Feet flat on the floor: the root at hip height 0.530 H.
+    EXPECT_NEAR(r.y(), 0.530 * 1.75, 1e-12);
+}
+
+TEST(RootTracker, TheStanceFootStaysWhereItTouchedTheFloor) {
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    Vec3d start;
+    for (int k = 0; k <= 50; ++k) {
+        // The left leg straight and rolling from 20 deg forward to 20 deg back (the body passes
+        // over it); the right leg lifted with a bent knee, its foot flat.
+        const double phi = (-20.0 + 40.0 * k / 50) * kDeg;
+        Pose p;
+        p.qLocal[idx(S::LThigh)] = Quatd(Eigen::AngleAxisd(phi, Vec3d::UnitX()));
+        p.qLocal[idx(S::LHindfoot)] = Quatd(Eigen::AngleAxisd(-phi, Vec3d::UnitX()));
+        p.qLocal[idx(S::RThigh)] = Quatd(Eigen::AngleAxisd(-30 * kDeg, Vec3d::UnitX()));
+        p.qLocal[idx(S::RCalf)] = Quatd(Eigen::AngleAxisd(60 * kDeg, Vec3d::UnitX()));
+        p.qLocal[idx(S::RHindfoot)] = Quatd(Eigen::AngleAxisd(-30 * kDeg, Vec3d::UnitX()));
+        s.solve(frameOf(p), 0.02);
+        const Vec3d heel = pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]);
+        if (k == 0) {
+            start = heel;
+            EXPECT_EQ(s.rootTracker().phase(), ContactPhase::LeftStance);
+        }
+        // Rigid kinematics with a fixed anchor: only rounding moves it.
+        EXPECT_LT((heel - start).norm(), 1e-9) << "frame " << k;
+    }
+    // The body passed over the foot: the root moved forward by 2 L sin(20 deg), L the leg
+    // length from hip to ankle (0.491 H).
+    const double leg = (0.245 + 0.246) * 1.75;
+    EXPECT_NEAR(s.pose().positionM[0].z(), 2 * leg * std::sin(20 * kDeg), 1e-9);
+}
+
+TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    auto crouch = [](double a) {
+        Pose p;
+        for (S t : {S::LThigh, S::RThigh}) {
+            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitX()));
+        }
+        for (S c : {S::LCalf, S::RCalf}) {
+            p.qLocal[idx(c)] = Quatd(Eigen::AngleAxisd(2 * a, Vec3d::UnitX()));
+        }
+        for (S f : {S::LHindfoot, S::RHindfoot}) {
+            p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitX()));
+        }
+        return p;
+    };
+    // Push-off: from a 60 deg crouch to 20 deg in 0.2 s, feet on the floor (1 g). The hips rise
+    // at 2 L sin(a) da/dt, about 1 m/s at the end.
+    for (int k = 0; k <= 20; ++k) {
+        s.solve(frameOf(crouch((60 - 40 * k / 20.0) * kDeg)), 0.01, 9.81);
+    }
+    EXPECT_NE(s.rootTracker().phase(), ContactPhase::Flight);
+    const double takeoffY = s.pose().positionM[0].y();
+    EXPECT_GT(s.rootTracker().rootVelocityMps().y(), 0.5);
+    // Free fall (the pelvis accelerometer reads ~0), the legs held.
+    bool flew = false;
+    double top = 0;
+    for (int k = 0; k < 100; ++k) {
+        s.solve(frameOf(crouch(20 * kDeg)), 0.01, 0.2);
+        flew = flew || s.rootTracker().phase() == ContactPhase::Flight;
+        top = std::max(top, s.pose().positionM[0].y());
+    }
+    EXPECT_TRUE(flew);
+    EXPECT_GT(top, takeoffY + 0.02);
+    // Back on the floor in stance, the lowest foot point at y = 0 (rounding only).
+    EXPECT_NE(s.rootTracker().phase(), ContactPhase::Flight);
+    double lowest = 1e9;
+    for (const Vec3d& p : s.feet().pointM) {
+        lowest = std::min(lowest, p.y());
+    }
+    EXPECT_NEAR(lowest + s.pose().positionM[0].y(), 0, 1e-9);
+}
+
+}  // namespace
+}  // namespace caphub::body
