@@ -18,6 +18,9 @@ packages=(
   # .deb packages, and caphub-flash's offline image editing (sfdisk, mtools, debugfs).
   g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev fakeroot file
   fdisk dosfstools mtools e2fsprogs
+  # Render: OSMesa, PNG, JPEG, HTTP, glTF.
+  libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
+  nlohmann-json3-dev libstb-dev
 )
 
 missing=()

@@ -1,0 +1,80 @@
+// The preview renderer: OSMesa (Mesa's llvmpipe, no GPU or display) with a GL 3.3 core context;
+// draws the lit skin, a floor grid, the skeleton and each sensor's state into an RGB Image.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "hal/core/error.h"
+#include "hal/core/quaternion.h"
+#include "render/image.h"
+#include "render/skin.h"
+#include "render/skinning.h"
+
+namespace caphub::render {
+
+// What the preview shows for the sensor on a segment.
+enum class SensorState : std::uint8_t {
+    None,          // no sensor on this segment: nothing drawn
+    Ok,            // green
+    Lost,          // red: no data
+    Uncalibrated,  // yellow
+};
+
+enum class CameraPreset : std::uint8_t {
+    Front,   // facing the subject (from +Z)
+    Side,    // from the subject's left (+X)
+    Orbit,   // circling the capture area, one turn in 20 s
+    Follow,  // front-left, three-quarter view that keeps the pelvis centred
+};
+
+struct RenderOptions {
+    int width = 320;
+    int height = 240;
+    CameraPreset camera = CameraPreset::Front;
+    bool drawGrid = true;
+    bool drawSkeleton = true;
+    bool drawSensors = true;
+};
+
+// Wall time of each stage of the last frame, nanoseconds (the benchmark's breakdown).
+struct StageTimes {
+    std::int64_t uploadNs = 0;    // vertices into the GL buffer
+    std::int64_t drawNs = 0;      // clear, draw calls and glFinish (llvmpipe rasterises here)
+    std::int64_t readbackNs = 0;  // the OSMesa buffer into the RGB image (flip, drop alpha)
+};
+
+// The state of one frame to draw.
+struct FrameInput {
+    std::span<const SkinnedVertex> vertices;           // skinned, as Skinner::output()
+    std::array<Vec3d, kSegmentCount> jointsM;          // segment origins (Skinner::jointPositionsM)
+    std::array<SensorState, kSegmentCount> sensors{};  // all None: no markers
+    double timeS = 0;                                  // drives the orbit camera
+};
+
+class Renderer {
+public:
+    // Makes the OSMesa context (GL 3.3 core), compiles the shaders and uploads the skin's
+    // triangles. Fails with the reason when OSMesa or the profile is unavailable.
+    static Result<std::unique_ptr<Renderer>> create(const Skin& skin, const RenderOptions& options);
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    void setCamera(CameraPreset camera) { options_.camera = camera; }
+    const RenderOptions& options() const { return options_; }
+
+    // Draws one frame into `out` (resized to the options' size). `times` may be null.
+    Result<void> render(const FrameInput& frame, Image& out, StageTimes* times = nullptr);
+
+private:
+    Renderer() = default;
+    struct Gl;
+    std::unique_ptr<Gl> gl_;
+    RenderOptions options_;
+    std::size_t vertexCount_ = 0;
+};
+
+}  // namespace caphub::render
