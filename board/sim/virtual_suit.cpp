@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "board/sim/bvh.h"
+#include "board/sim/joint_map.h"
 #include "hal/sim/sim_bus.h"
 
 namespace caphub::board::sim {
@@ -150,6 +152,87 @@ Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
         suit.buses.push_back(std::move(hw));
     }
     suit.keepAlive = world;
+    return suit;
+}
+
+namespace {
+
+// One sensor of the clip-driven suit: the IMU model's reading in the chip's frame.
+class ClipImuSource final : public hs::PhysicalSource {
+public:
+    ClipImuSource(std::shared_ptr<const Motion> motion, const Environment& env,
+                  const SensorPlacement& placement, const ImuErrorSpec& spec, std::uint64_t seed,
+                  const SensorConfig& sensor, Timestamp start)
+        : motion_(std::move(motion)),
+          imu_(*motion_, env, placement, spec, seed, sensor.achievedOdrHz,
+               sensor.magOdrHz > 0 ? sensor.magOdrHz : sensor.achievedOdrHz),
+          start_(start) {}
+
+    hs::PhysicalInput at(Timestamp t) override {
+        const std::int64_t tNs = std::max<std::int64_t>(0, toNs(t - start_));
+        const ImuSignals s = imu_.read(tNs);
+        hs::PhysicalInput in;
+        in.accMps2 = s.accelMps2;
+        in.gyrRadps = s.gyroRadS;
+        in.magUt = s.magUt;
+        return in;
+    }
+
+private:
+    std::shared_ptr<const Motion> motion_;  // the trajectory VirtualImu reads
+    VirtualImu imu_;
+    Timestamp start_;
+};
+
+}  // namespace
+
+Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
+    auto clip = loadBvh(options.bvh);
+    if (!clip) {
+        return clip.error();
+    }
+    JointMap map;
+    if (!options.map.empty()) {
+        auto loaded = loadJointMap(options.map);
+        if (!loaded) {
+            return loaded.error();
+        }
+        map = std::move(*loaded);
+    } else if (const JointMap* detected = detectJointMap(*clip)) {
+        map = *detected;
+    } else {
+        return Error{EINVAL, "'" + options.bvh.string() +
+                                 "': no built-in joint map fits its joint names; give one "
+                                 "with --map (docs/virtual-suit.md)"};
+    }
+    auto motion = Motion::fromClip(*clip, map);
+    if (!motion) {
+        return motion.error();
+    }
+    ClipSuit suit;
+    suit.motion = std::make_shared<const Motion>(std::move(*motion));
+    SegmentState pelvis;
+    suit.motion->evaluate(board::Segment::Pelvis, 0, pelvis);
+    suit.environment = environmentFor(options.profile, pelvis.positionM);
+    const auto motionPtr = suit.motion;
+    const Environment env = suit.environment;
+    const ErrorProfile profile = options.profile;
+    const std::uint64_t seed = options.seed;
+    suit.sources = [motionPtr, env, profile, seed, start](
+                       const SensorConfig& sensor,
+                       int index) -> std::unique_ptr<hs::PhysicalSource> {
+        auto spec = errorSpec(sensor.chip->name, profile);
+        if (!spec) {
+            return nullptr;
+        }
+        SensorPlacement placement;
+        placement.segment = sensor.segment;
+        placement.mounting = sensor.mounting;
+        placement.leverArmM = sensor.positionM;
+        return std::make_unique<ClipImuSource>(motionPtr, env, placement, *spec,
+                                               seed * 1000003u + static_cast<std::uint64_t>(index),
+                                               sensor, start);
+    };
     return suit;
 }
 

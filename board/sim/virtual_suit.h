@@ -3,10 +3,13 @@
 // muxes and data-ready waiting the hub uses on real buses.
 #pragma once
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 
 #include "board/hardware.h"
+#include "board/sim/imu_model.h"
+#include "board/sim/motion.h"
 #include "hal/sim/device_model.h"
 #include "hal/sim/imu_models.h"
 
@@ -26,5 +29,24 @@ struct VirtualChips {
 // Builds the suit of a board whose buses are all sim buses. Errors name the offending bus.
 Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
                                       const SourceFactory& sources, VirtualChips* chips = nullptr);
+
+// Physical inputs from motion capture: each sensor reads the clip's motion of its segment
+// through the IMU model (its mounting and lever arm from the board, the error profile, a seed
+// per sensor). Time 0 of the clip is `start` on the capture clock; after the clip the last pose
+// is held.
+struct ClipOptions {
+    std::filesystem::path bvh;
+    std::filesystem::path map;  // empty: detect a built-in preset from the clip's joint names
+    ErrorProfile profile = ErrorProfile::Typical;
+    std::uint64_t seed = 1;
+};
+
+struct ClipSuit {
+    std::shared_ptr<const Motion> motion;
+    Environment environment;
+    SourceFactory sources;
+};
+
+Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start);
 
 }  // namespace caphub::board::sim

@@ -39,7 +39,24 @@ struct RunOptions {
     std::string out;
     double speed = 1.0;
     bool noRecord = false;
+    std::string bvh;  // virtual suit: the motion; default: the shipped walking clip
+    std::string map;
+    std::string profile = "typical";
+    std::uint64_t seed = 1;
+    bool rest = false;
 };
+
+// The walking clip shipped with the sources (tests/data/bvh), when it can be found.
+fs::path defaultClip() {
+    if (auto d = dataDir()) {
+        const fs::path clip = *d / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
+        std::error_code ec;
+        if (fs::exists(clip, ec)) {
+            return clip;
+        }
+    }
+    return {};
+}
 
 bool allSimulated(const board::Board& b) {
     for (const auto& bus : b.buses) {
@@ -75,8 +92,37 @@ int run(const RunOptions& o) {
     } else {
         clock = std::make_unique<MonotonicClock>();
     }
+    board::sim::SourceFactory sources;
+    std::string motionText = "at rest";
+    if (sim && !o.rest) {
+        board::sim::ClipOptions clip;
+        clip.bvh = o.bvh.empty() ? defaultClip() : fs::path(o.bvh);
+        clip.map = o.map;
+        clip.seed = o.seed;
+        const auto profile = board::sim::parseErrorProfile(o.profile);
+        if (!profile) {
+            fmt::print(stderr, "caphub run: unknown profile '{}' (ideal, typical or harsh)\n",
+                       o.profile);
+            return kExitUsage;
+        }
+        clip.profile = *profile;
+        if (clip.bvh.empty()) {
+            log::logger(log::Category::Sim)
+                .warn("no motion clip found (give --bvh FILE): the virtual suit stands still");
+        } else {
+            auto suitMotion = board::sim::clipSources(clip, clock->now());
+            if (!suitMotion) {
+                fmt::print(stderr, "caphub run: {}\n", suitMotion.error().message);
+                return kExitUsage;
+            }
+            sources = suitMotion->sources;
+            motionText = fmt::format("{} ({:.1f} s, {} profile)", clip.bvh.filename().string(),
+                                     static_cast<double>(suitMotion->motion->durationNs()) * 1e-9,
+                                     o.profile);
+        }
+    }
     auto suit =
-        sim ? board::sim::buildVirtualSuit(b, *clock, nullptr) : board::openLinuxSuit(b, *clock);
+        sim ? board::sim::buildVirtualSuit(b, *clock, sources) : board::openLinuxSuit(b, *clock);
     if (!suit) {
         fmt::print(stderr, "caphub run: {}\n", suit.error().message);
         return kExitRuntime;
@@ -110,7 +156,7 @@ int run(const RunOptions& o) {
     capture.addStage(fusionStage);
 
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
-               b.buses.size(), b.name, sim ? "virtual suit" : "hub buses",
+               b.buses.size(), b.name, sim ? "virtual suit, motion " + motionText : "hub buses",
                o.durationS > 0 ? fmt::format(", {:g} s", o.durationS) : ", Ctrl-C to stop");
     gCapture.store(&capture);
     std::signal(SIGINT, onStopSignal);
@@ -171,6 +217,14 @@ void addRunCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_flag("--no-record", o->noRecord, "Do not write a recording");
+    cmd->add_option("--bvh", o->bvh,
+                    "Virtual suit: the motion (BVH); default: the shipped walking clip");
+    cmd->add_option("--map", o->map, "Virtual suit: joint-name map (TOML) for the BVH file");
+    cmd->add_option("--profile", o->profile, "Virtual suit: sensor errors: ideal, typical, harsh")
+        ->capture_default_str();
+    cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
+        ->capture_default_str();
+    cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
     cmd->callback([&exitCode, o] { exitCode = run(*o); });
 }
 
