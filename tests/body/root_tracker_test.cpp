@@ -54,7 +54,7 @@ TEST(RootTracker, StandingStillKeepsTheRootInPlace) {
 TEST(RootTracker, TheStanceFootStaysWhereItTouchedTheFloor) {
     const Dimensions d = dims();
     BodySolver s = makeSolver(d);
-    Vec3d start;
+    Vec3d start = Vec3d::Zero();
     for (int k = 0; k <= 50; ++k) {
         // The left leg straight and rolling from 20 deg forward to 20 deg back (the body passes
         // over it); the right leg lifted with a bent knee, its foot flat.

@@ -24,12 +24,17 @@ void* operator new(std::size_t n) {
     }
     throw std::bad_alloc();
 }
+// The replacement new above allocates with malloc, so free is the matching release; GCC 12's
+// -Wmismatched-new-delete misreads that once the operators are inlined at -O2.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 void operator delete(void* p) noexcept {
     std::free(p);
 }
 void operator delete(void* p, std::size_t) noexcept {
     std::free(p);
 }
+#pragma GCC diagnostic pop
 
 namespace caphub::board::sim {
 namespace {
