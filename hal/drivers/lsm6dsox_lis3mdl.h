@@ -1,7 +1,7 @@
 // LSM6DSOX accelerometer/gyroscope with a LIS3MDL magnetometer on the same bus, driven as one
 // 9-axis sensor. Accel, gyro and temperature come in one burst per sample; the magnetometer is
-// read in a burst of its own (status + data), polled at twice its rate or at every sample. Both dies are assumed to be
-// mounted with the same axes (as on the common LSM6DSOX+LIS3MDL breakouts).
+// read in a burst of its own (status + data), polled at twice its rate or at every sample. Both
+// dies are assumed to be mounted with the same axes (as on the common LSM6DSOX+LIS3MDL breakouts).
 #pragma once
 
 #include <memory>
