@@ -79,6 +79,35 @@ Result<std::unique_ptr<hal::ImuDriver>> makeDriver(const SensorConfig& sensor,
     return Error{EINVAL, "sensor '" + sensor.name + "': no driver for this chip"};
 }
 
+void addMuxes(BusHardware& hw, const Board& board) {
+    for (const MuxConfig& m : board.muxes) {
+        if (m.bus == hw.bus) {
+            hw.muxes.push_back(std::make_unique<hal::Tca9548a>(*hw.i2c, m.address, m.name));
+        }
+    }
+    for (auto& m : hw.muxes) {
+        std::vector<hal::Tca9548a*> siblings;
+        for (auto& o : hw.muxes) {
+            if (o != m) {
+                siblings.push_back(o.get());
+            }
+        }
+        m->setSiblings(std::move(siblings));
+    }
+}
+
+hal::I2cBus& sensorBus(BusHardware& hw, const Board& board, const SensorConfig& sensor) {
+    if (sensor.mux >= 0) {
+        const std::string& name = board.muxes[static_cast<std::size_t>(sensor.mux)].name;
+        for (auto& m : hw.muxes) {
+            if (m->name() == name) {
+                return m->channel(sensor.channel);
+            }
+        }
+    }
+    return *hw.i2c;
+}
+
 Result<SuitHardware> openLinuxSuit(const Board& board, Clock& clock) {
     SuitHardware suit;
     suit.clock = &clock;
@@ -102,24 +131,7 @@ Result<SuitHardware> openLinuxSuit(const Board& board, Clock& clock) {
                 return bus.error();
             }
             hw.i2c = std::move(*bus);
-            for (const MuxConfig& m : board.muxes) {
-                if (m.bus == hw.bus) {
-                    hw.muxes.push_back(std::make_unique<hal::Tca9548a>(*hw.i2c, m.address, m.name));
-                }
-            }
-            std::vector<hal::Tca9548a*> all;
-            for (auto& m : hw.muxes) {
-                all.push_back(m.get());
-            }
-            for (auto& m : hw.muxes) {
-                std::vector<hal::Tca9548a*> siblings;
-                for (auto* o : all) {
-                    if (o != m.get()) {
-                        siblings.push_back(o);
-                    }
-                }
-                m->setSiblings(std::move(siblings));
-            }
+            addMuxes(hw, board);
         }
         for (std::size_t s = 0; s < board.sensors.size(); ++s) {
             const SensorConfig& sc = board.sensors[s];
@@ -129,15 +141,7 @@ Result<SuitHardware> openLinuxSuit(const Board& board, Clock& clock) {
             std::unique_ptr<hal::RegisterIo> imu;
             std::unique_ptr<hal::RegisterIo> mag;
             if (bc.type == BusType::I2c) {
-                hal::I2cBus* bus = hw.i2c.get();
-                if (sc.mux >= 0) {
-                    const std::string& muxName = board.muxes[static_cast<std::size_t>(sc.mux)].name;
-                    for (auto& m : hw.muxes) {
-                        if (m->name() == muxName) {
-                            bus = &m->channel(sc.channel);
-                        }
-                    }
-                }
+                hal::I2cBus* bus = &sensorBus(hw, board, sc);
                 imu = i2cRegisters(sc, *bus, false);
                 if (sc.magAddress) {
                     mag = i2cRegisters(sc, *bus, true);

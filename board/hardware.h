@@ -60,6 +60,13 @@ std::unique_ptr<hal::RegisterIo> i2cRegisters(const SensorConfig& sensor, hal::I
 std::unique_ptr<hal::RegisterIo> spiRegisters(const SensorConfig& sensor, hal::SpiBus& bus,
                                               bool magnetometer);
 
+// Adds a TCA9548A decorator for each of the board's muxes on the bus and makes them siblings
+// (selecting a channel on one closes the others).
+void addMuxes(BusHardware& hw, const Board& board);
+
+// The bus a sensor's registers are reached on: its mux channel, or the bus itself.
+hal::I2cBus& sensorBus(BusHardware& hw, const Board& board, const SensorConfig& sensor);
+
 // Opens the board's real buses (i2c-dev, spidev), muxes, drivers and data-ready lines (libgpiod,
 // or a timer for sensors without one). Errors name the device and what failed.
 Result<SuitHardware> openLinuxSuit(const Board& board, Clock& clock);

@@ -53,17 +53,8 @@ Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
                 world->muxes.push_back(std::make_unique<hs::Tca9548aModel>());
                 i2c->attach(*world->muxes.back(), m.address);
                 muxModels.emplace_back(m.name, world->muxes.back().get());
-                hw.muxes.push_back(std::make_unique<hal::Tca9548a>(*hw.i2c, m.address, m.name));
             }
-            for (auto& m : hw.muxes) {
-                std::vector<hal::Tca9548a*> siblings;
-                for (auto& o : hw.muxes) {
-                    if (o != m) {
-                        siblings.push_back(o.get());
-                    }
-                }
-                m->setSiblings(std::move(siblings));
-            }
+            addMuxes(hw, board);
         }
         for (std::size_t s = 0; s < board.sensors.size(); ++s) {
             const SensorConfig& sc = board.sensors[s];
@@ -103,17 +94,12 @@ Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
             std::unique_ptr<hal::RegisterIo> magRegs;
             if (i2c != nullptr) {
                 const hs::Tca9548aModel* muxModel = nullptr;
-                hal::I2cBus* bus = hw.i2c.get();
+                hal::I2cBus* bus = &sensorBus(hw, board, sc);
                 if (sc.mux >= 0) {
                     const std::string& name = board.muxes[static_cast<std::size_t>(sc.mux)].name;
                     for (auto& [n, model] : muxModels) {
                         if (n == name) {
                             muxModel = model;
-                        }
-                    }
-                    for (auto& m : hw.muxes) {
-                        if (m->name() == name) {
-                            bus = &m->channel(sc.channel);
                         }
                     }
                 }

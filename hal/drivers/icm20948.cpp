@@ -248,18 +248,8 @@ int Icm20948::readSample(Timestamp t, ImuSample& out) {
     out.flags = 0;
     const double accScale = kStandardGravity / accelLsbPerG_;
     const double gyrScale = kPi / 180.0 / gyroLsbPerDps_;
-    for (int i = 0; i < 3; ++i) {
-        const std::int16_t a = be16(&b.accel[2 * i]);
-        const std::int16_t g = be16(&b.gyro[2 * i]);
-        out.accMps2[i] = static_cast<float>(a * accScale);
-        out.gyrRadps[i] = static_cast<float>(g * gyrScale);
-        if (atFullScale(a)) {
-            out.flags |= ImuSample::kAccSaturated;
-        }
-        if (atFullScale(g)) {
-            out.flags |= ImuSample::kGyrSaturated;
-        }
-    }
+    setAccelGyro(out, {be16(&b.accel[0]), be16(&b.accel[2]), be16(&b.accel[4])},
+                 {be16(&b.gyro[0]), be16(&b.gyro[2]), be16(&b.gyro[4])}, accScale, gyrScale);
     out.temperatureC = static_cast<float>(be16(b.temp) / kTempLsbPerDegC + kTempOffsetDegC);
     if ((b.magSt1 & ak09916::ST1_DRDY) != 0) {
         // The AK09916's axes are the accelerometer's x, -y, -z (datasheet, orientation of axes).

@@ -134,4 +134,22 @@ constexpr bool atFullScale(std::int16_t v) {
     return v == INT16_MAX || v == INT16_MIN;
 }
 
+// Fills a sample's accelerometer and gyroscope from raw counts and their scales (SI units per
+// count), flagging a triad with an axis at full scale.
+inline void setAccelGyro(ImuSample& out, const std::array<std::int16_t, 3>& acc,
+                         const std::array<std::int16_t, 3>& gyr, double accPerLsb,
+                         double gyrPerLsb) {
+    for (std::size_t k = 0; k < 3; ++k) {
+        const auto i = static_cast<Eigen::Index>(k);
+        out.accMps2[i] = static_cast<float>(acc[k] * accPerLsb);
+        out.gyrRadps[i] = static_cast<float>(gyr[k] * gyrPerLsb);
+        if (atFullScale(acc[k])) {
+            out.flags |= ImuSample::kAccSaturated;
+        }
+        if (atFullScale(gyr[k])) {
+            out.flags |= ImuSample::kGyrSaturated;
+        }
+    }
+}
+
 }  // namespace caphub::hal

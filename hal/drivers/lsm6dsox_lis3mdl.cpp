@@ -184,18 +184,9 @@ int Lsm6dsoxLis3mdl::readSample(Timestamp t, ImuSample& out) {
     }
     out.t = t;
     out.flags = 0;
-    for (int i = 0; i < 3; ++i) {
-        const std::int16_t a = le16(&b.accel[2 * i]);
-        const std::int16_t g = le16(&b.gyro[2 * i]);
-        out.accMps2[i] = static_cast<float>(a * accelMps2PerLsb_);
-        out.gyrRadps[i] = static_cast<float>(g * gyroRadpsPerLsb_);
-        if (atFullScale(a)) {
-            out.flags |= ImuSample::kAccSaturated;
-        }
-        if (atFullScale(g)) {
-            out.flags |= ImuSample::kGyrSaturated;
-        }
-    }
+    setAccelGyro(out, {le16(&b.accel[0]), le16(&b.accel[2]), le16(&b.accel[4])},
+                 {le16(&b.gyro[0]), le16(&b.gyro[2]), le16(&b.gyro[4])}, accelMps2PerLsb_,
+                 gyroRadpsPerLsb_);
     out.temperatureC =
         static_cast<float>(le16(b.temp) / lsm6dsox::kTempLsbPerDegC + lsm6dsox::kTempOffsetDegC);
     // Polled at least twice per magnetometer period, so no magnetometer sample is missed; its
