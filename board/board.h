@@ -105,4 +105,14 @@ struct Board {
     SubjectConfig subject;
 };
 
+// True when every bus of the board is simulated: the board is a virtual suit.
+inline bool allBusesSimulated(const Board& b) {
+    for (const auto& bus : b.buses) {
+        if (bus.type != BusType::Sim) {
+            return false;
+        }
+    }
+    return true;
+}
+
 }  // namespace caphub::board

@@ -1,9 +1,14 @@
 #include "board/sim/virtual_suit.h"
 
+#include <algorithm>
+#include <cmath>
+#include <random>
+
 #include <fmt/format.h>
 
 #include "board/sim/bvh.h"
 #include "board/sim/joint_map.h"
+#include "hal/imu_sample.h"
 #include "hal/sim/sim_bus.h"
 
 namespace caphub::board::sim {
@@ -172,6 +177,28 @@ private:
 
 }  // namespace
 
+Quatd strappedMounting(const Quatd& nominal, double strapErrorDeg, std::uint64_t seed, int index) {
+    if (strapErrorDeg <= 0) {
+        return nominal;
+    }
+    // Raw 64-bit draws of a fully specified engine, turned into numbers here, so that every
+    // platform and standard library draws the same mountings.
+    std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + 0x5157u + static_cast<std::uint64_t>(index));
+    const auto uniform = [&rng] {
+        return (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;  // in (0, 1)
+    };
+    // A random axis, uniform on the sphere.
+    const double z = 2 * uniform() - 1;
+    const double phi = 2 * hal::kPi * uniform();
+    const double r = std::sqrt(std::max(0.0, 1 - z * z));
+    const Vec3d axis(r * std::cos(phi), r * std::sin(phi), z);
+    // A half-normal angle (Box-Muller), capped at three scales so that no draw is absurd.
+    const double g = std::sqrt(-2 * std::log(uniform())) * std::cos(2 * hal::kPi * uniform());
+    const double angleDeg = std::min(std::abs(g), 3.0) * strapErrorDeg;
+    // The strap turns the sensor about the segment's axes: q_segment_sensor' = q_err * q_nominal.
+    return (Quatd(Eigen::AngleAxisd(angleDeg * hal::kPi / 180, axis)) * nominal).normalized();
+}
+
 Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     auto clip = loadBvh(options.bvh);
     if (!clip) {
@@ -187,9 +214,9 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     } else if (const JointMap* detected = detectJointMap(*clip)) {
         map = *detected;
     } else {
-        return Error{EINVAL, "'" + options.bvh.string() +
-                                 "': no built-in joint map fits its joint names; give one "
-                                 "with --map (docs/virtual-suit.md)"};
+        return Error{EINVAL, fmt::format("'{}': no built-in joint map fits its joint names; give "
+                                         "one with --map (docs/virtual-suit.md)",
+                                         options.bvh.string())};
     }
     auto motion = Motion::fromClip(*clip, map);
     if (!motion) {
@@ -204,17 +231,22 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     const Environment env = suit.environment;
     const ErrorProfile profile = options.profile;
     const std::uint64_t seed = options.seed;
-    suit.sources = [motionPtr, env, profile, seed, start](
+    const double strapDeg = options.strapErrorDeg;
+    suit.placement = [seed, strapDeg](const SensorConfig& sensor, int index) {
+        SensorPlacement placement;
+        placement.segment = sensor.segment;
+        placement.mounting = strappedMounting(sensor.mounting, strapDeg, seed, index);
+        placement.leverArmM = sensor.positionM;
+        return placement;
+    };
+    suit.sources = [motionPtr, env, profile, seed, start, placementOf = suit.placement](
                        const SensorConfig& sensor,
                        int index) -> std::unique_ptr<hs::PhysicalSource> {
         auto spec = errorSpec(sensor.chip->name, profile);
         if (!spec) {
             return nullptr;
         }
-        SensorPlacement placement;
-        placement.segment = sensor.segment;
-        placement.mounting = sensor.mounting;
-        placement.leverArmM = sensor.positionM;
+        const SensorPlacement placement = placementOf(sensor, index);
         return std::make_unique<ClipImuSource>(motionPtr, env, placement, *spec,
                                                seed * 1000003u + static_cast<std::uint64_t>(index),
                                                sensor, start);

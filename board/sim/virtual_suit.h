@@ -31,21 +31,33 @@ Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
                                       const SourceFactory& sources, VirtualChips* chips = nullptr);
 
 // Physical inputs from motion capture: each sensor reads the clip's motion of its segment
-// through the IMU model (its mounting and lever arm from the board, the error profile, a seed
-// per sensor). Time 0 of the clip is `start` on the capture clock; after the clip the last pose
-// is held.
+// through the IMU model (its lever arm from the board, its mounting from the board turned by a
+// strapping error, the error profile, a seed per sensor). Time 0 of the clip is `start` on the
+// capture clock; after the clip the last pose is held.
 struct ClipOptions {
     std::filesystem::path bvh;
     std::filesystem::path map;  // empty: detect a built-in preset from the clip's joint names
     ErrorProfile profile = ErrorProfile::Typical;
     std::uint64_t seed = 1;
+    // How far a strapped-on sensor sits from the board file's nominal mounting: each sensor's
+    // true mounting is the nominal one turned about a random axis by an angle drawn from a
+    // half-normal distribution with this scale (degrees). Straps on soft tissue sit 5-15 degrees
+    // off what the wearer intended (docs/virtual-suit.md); 0 puts every sensor exactly at its
+    // nominal mounting. Independent of the error profile: it is the fit of the suit, not the chip.
+    double strapErrorDeg = 10;
 };
 
 struct ClipSuit {
     std::shared_ptr<const Motion> motion;
     Environment environment;
     SourceFactory sources;
+    // Where a board sensor truly sits on its segment (the mounting the calibration must find).
+    std::function<SensorPlacement(const SensorConfig& sensor, int index)> placement;
 };
+
+// The true mounting of sensor `index`: the nominal one turned by the strapping error of
+// ClipOptions::strapErrorDeg, drawn from the seed and the index.
+Quatd strappedMounting(const Quatd& nominal, double strapErrorDeg, std::uint64_t seed, int index);
 
 Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start);
 

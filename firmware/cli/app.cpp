@@ -25,7 +25,6 @@ constexpr Planned kPlanned[] = {
     {"selftest", "Probe every sensor of a board and check its configuration"},
     {"export", "Export a recording to BVH, glTF (.glb), CSV or OpenSim .sto"},
     {"replay", "Play a recording back through the body solver and the preview"},
-    {"sim", "Drive the virtual suit from a BVH file and inspect its signals"},
 };
 
 }  // namespace
@@ -54,6 +53,7 @@ int runCli(int argc, char** argv) {
     addInfoCommands(app, exitCode);
     addRunCommand(app, exitCode);
     addFusionCommand(app, exitCode);
+    addSimCommand(app, exitCode);
     for (const auto& p : kPlanned) {
         CLI::App* sub = app.add_subcommand(p.name, p.description);
         sub->allow_extras();

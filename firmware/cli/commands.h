@@ -9,5 +9,6 @@ void addBoardsCommand(CLI::App& app, int& exitCode);
 void addInfoCommands(CLI::App& app, int& exitCode);
 void addRunCommand(CLI::App& app, int& exitCode);
 void addFusionCommand(CLI::App& app, int& exitCode);
+void addSimCommand(CLI::App& app, int& exitCode);
 
 }  // namespace caphub::firmware

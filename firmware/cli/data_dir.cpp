@@ -43,4 +43,15 @@ fs::path resolveBoardFile(const std::string& nameOrPath) {
     return given;
 }
 
+fs::path defaultMotionClip() {
+    if (auto d = dataDir()) {
+        const fs::path clip = *d / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
+        std::error_code ec;
+        if (fs::exists(clip, ec)) {
+            return clip;
+        }
+    }
+    return {};
+}
+
 }  // namespace caphub::firmware

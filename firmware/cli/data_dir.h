@@ -17,4 +17,8 @@ std::optional<std::filesystem::path> dataDir();
 // A board given as a path, or as the name of a shipped board ("sim-suit").
 std::filesystem::path resolveBoardFile(const std::string& nameOrPath);
 
+// The walking clip shipped with the sources (tests/data/bvh), the virtual suit's default motion;
+// empty when it cannot be found.
+std::filesystem::path defaultMotionClip();
+
 }  // namespace caphub::firmware

@@ -46,27 +46,6 @@ struct RunOptions {
     bool rest = false;
 };
 
-// The walking clip shipped with the sources (tests/data/bvh), when it can be found.
-fs::path defaultClip() {
-    if (auto d = dataDir()) {
-        const fs::path clip = *d / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
-        std::error_code ec;
-        if (fs::exists(clip, ec)) {
-            return clip;
-        }
-    }
-    return {};
-}
-
-bool allSimulated(const board::Board& b) {
-    for (const auto& bus : b.buses) {
-        if (bus.type != board::BusType::Sim) {
-            return false;
-        }
-    }
-    return true;
-}
-
 std::string timestampName() {
     const std::time_t now = std::time(nullptr);
     char buf[32];
@@ -84,7 +63,7 @@ int run(const RunOptions& o) {
         return kExitUsage;
     }
     const board::Board& b = *loaded.board;
-    const bool sim = allSimulated(b);
+    const bool sim = board::allBusesSimulated(b);
 
     std::unique_ptr<Clock> clock;
     if (sim) {
@@ -96,7 +75,7 @@ int run(const RunOptions& o) {
     std::string motionText = "at rest";
     if (sim && !o.rest) {
         board::sim::ClipOptions clip;
-        clip.bvh = o.bvh.empty() ? defaultClip() : fs::path(o.bvh);
+        clip.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
         clip.map = o.map;
         clip.seed = o.seed;
         const auto profile = board::sim::parseErrorProfile(o.profile);

@@ -77,6 +77,11 @@ void BusWorker::runOnce() {
         if (s.driver->state() != hal::ImuDriver::State::Running) {
             const int r = s.driver->service(now);
             if (r == 0) {
+                // Edges from before the configuration was complete carry samples taken with the
+                // old settings (full scale, rate): drop them, as the driver's FIFO reset would.
+                Timestamp stale{};
+                while (s.line->readEdge(stale) == 0) {
+                }
                 st.wasOnline = true;
                 st.lastEdge = now;
                 st.nextCheck = now + options_.checkInterval;

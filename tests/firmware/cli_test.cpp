@@ -18,10 +18,10 @@ struct CliRun {
     std::string output;  // stdout and stderr
 };
 
-CliRun caphub(const std::string& args) {
-    const std::string cmd = std::string(CAPHUB_BINARY) + " " + args + " 2>&1";
+// A shell command line (for reading back what caphub wrote with the tools a user has, too).
+CliRun shell(const std::string& pipeline) {
     CliRun r;
-    FILE* p = popen(cmd.c_str(), "r");
+    FILE* p = popen((pipeline + " 2>&1").c_str(), "r");
     if (p == nullptr) {
         return r;
     }
@@ -33,6 +33,10 @@ CliRun caphub(const std::string& args) {
     const int status = pclose(p);
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
+}
+
+CliRun caphub(const std::string& args) {
+    return shell(std::string(CAPHUB_BINARY) + " " + args);
 }
 
 std::string writeTemp(const std::string& name, const std::string& text) {
@@ -160,6 +164,43 @@ TEST(Cli, InfoOfANonRecordingIsAUsageError) {
     const CliRun r = caphub("info " + path);
     EXPECT_EQ(r.exitCode, 2);
     EXPECT_THAT(r.output, HasSubstr("not a caphub recording"));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(CliSim, WritesEverySensorAndTheSkeletonInTheBroadLayout) {
+    const std::string dir = ::testing::TempDir() + "caphub-sim-all";
+    std::filesystem::remove_all(dir);
+    const CliRun r = caphub("sim --board sim-upper10 --all --profile ideal --out " + dir);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("x real time"));
+    int files = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        files += e.path().extension() == ".gz";
+    }
+    EXPECT_EQ(files, 11);  // 10 sensors and the skeleton
+    // The BROAD header, read back through gzip as another tool would.
+    const CliRun head = shell("zcat " + dir + "/l_forearm.csv.gz | sed -n 2p");
+    EXPECT_THAT(head.output,
+                HasSubstr("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,opt_w,opt_x,"
+                          "opt_y,opt_z,movement"));
+    const CliRun skel = shell("zcat " + dir + "/skeleton.csv.gz | sed -n 2p");
+    EXPECT_THAT(skel.output, HasSubstr("t,pelvis_qw,"));
+}
+
+TEST(CliSim, AnUnknownSensorIsAUsageErrorThatListsTheBoardsSensors) {
+    const CliRun r = caphub("sim --sensor nose --out " + ::testing::TempDir() + "nose.csv.gz");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("no sensor on 'nose'"));
+    EXPECT_THAT(r.output, HasSubstr("l_forearm"));
+}
+
+TEST(CliSim, ARealBoardIsRefused) {
+    const CliRun r = caphub("sim --board rpi4-suit --sensor pelvis");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("has real buses"));
 }
 
 }  // namespace
