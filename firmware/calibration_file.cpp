@@ -254,4 +254,26 @@ Result<void> writeCalibrationFile(const std::filesystem::path& path, const Calib
     return {};
 }
 
+std::vector<std::optional<fusion::SensorCalibration>> calibrationsFor(
+    const board::Board& board, const CalibrationSet& set, std::vector<std::string>* unknown) {
+    std::vector<std::optional<fusion::SensorCalibration>> out(board.sensors.size());
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        if (auto it = set.find(board.sensors[i].name); it != set.end()) {
+            out[i] = it->second;
+        }
+    }
+    if (unknown != nullptr) {
+        for (const auto& [name, cal] : set) {
+            bool found = false;
+            for (const auto& s : board.sensors) {
+                found = found || s.name == name;
+            }
+            if (!found) {
+                unknown->push_back(name);
+            }
+        }
+    }
+    return out;
+}
+
 }  // namespace caphub::firmware

@@ -5,8 +5,11 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
+#include <vector>
 
+#include "board/board.h"
 #include "fusion/calibration/sensor_calibration.h"
 #include "hal/core/error.h"
 
@@ -24,5 +27,10 @@ Result<CalibrationSet> readCalibrationFile(const std::filesystem::path& path);
 // The text of a calibration file (values with full double precision, so a read-back is exact).
 std::string formatCalibration(const CalibrationSet& set);
 Result<void> writeCalibrationFile(const std::filesystem::path& path, const CalibrationSet& set);
+
+// The calibration of each board sensor, by name (none where the set has none); the set's names
+// that no sensor of the board has are added to `unknown`.
+std::vector<std::optional<fusion::SensorCalibration>> calibrationsFor(
+    const board::Board& board, const CalibrationSet& set, std::vector<std::string>* unknown);
 
 }  // namespace caphub::firmware

@@ -8,6 +8,7 @@
 
 #include "board/sim/bvh.h"
 #include "board/sim/joint_map.h"
+#include "board/sim/scripted_motion.h"
 #include "hal/imu_sample.h"
 #include "hal/sim/sim_bus.h"
 
@@ -148,14 +149,15 @@ Result<SuitHardware> buildVirtualSuit(const Board& board, Clock& clock,
 
 namespace {
 
-// One sensor of the clip-driven suit: the IMU model's reading in the chip's frame.
-class ClipImuSource final : public hs::PhysicalSource {
+// One sensor of the virtual suit: the IMU model's reading in the chip's frame, of a trajectory
+// whose time 0 is `start` on the capture clock.
+class TrajectoryImuSource final : public hs::PhysicalSource {
 public:
-    ClipImuSource(std::shared_ptr<const Motion> motion, const Environment& env,
-                  const SensorPlacement& placement, const ImuErrorSpec& spec, std::uint64_t seed,
-                  const SensorConfig& sensor, Timestamp start)
-        : motion_(std::move(motion)),
-          imu_(*motion_, env, placement, spec, seed, sensor.achievedOdrHz,
+    TrajectoryImuSource(std::shared_ptr<const SegmentTrajectory> trajectory, const Environment& env,
+                        const SensorPlacement& placement, const ImuErrorSpec& spec,
+                        std::uint64_t seed, const SensorConfig& sensor, Timestamp start)
+        : trajectory_(std::move(trajectory)),
+          imu_(*trajectory_, env, placement, spec, seed, sensor.achievedOdrHz,
                sensor.magOdrHz > 0 ? sensor.magOdrHz : sensor.achievedOdrHz),
           start_(start) {}
 
@@ -170,12 +172,16 @@ public:
     }
 
 private:
-    std::shared_ptr<const Motion> motion_;  // the trajectory VirtualImu reads
+    std::shared_ptr<const SegmentTrajectory> trajectory_;  // what VirtualImu reads
     VirtualImu imu_;
     Timestamp start_;
 };
 
 }  // namespace
+
+std::uint64_t partSeed(std::uint64_t suitSeed, int index) {
+    return suitSeed * 1000003u + static_cast<std::uint64_t>(index);
+}
 
 Quatd strappedMounting(const Quatd& nominal, double strapErrorDeg, std::uint64_t seed, int index) {
     if (strapErrorDeg <= 0) {
@@ -247,9 +253,34 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
             return nullptr;
         }
         const SensorPlacement placement = placementOf(sensor, index);
-        return std::make_unique<ClipImuSource>(motionPtr, env, placement, *spec,
-                                               seed * 1000003u + static_cast<std::uint64_t>(index),
-                                               sensor, start);
+        return std::make_unique<TrajectoryImuSource>(motionPtr, env, placement, *spec,
+                                                     partSeed(seed, index), sensor, start);
+    };
+    return suit;
+}
+
+ScriptedSuit scriptedSources(const ScriptOptions& options, Timestamp start) {
+    ScriptedSuit suit;
+    auto motion = std::make_shared<const ScriptedMotion>(options.script, options.timing);
+    suit.motion = motion;
+    suit.environment = environmentFor(options.profile, Vec3d(0.0, 1.0, 0.0));
+    const Environment env = suit.environment;
+    const ErrorProfile profile = options.profile;
+    const std::uint64_t seed = options.seed;
+    suit.placement = [](const SensorConfig& sensor, int) {
+        SensorPlacement placement;  // off the body: the script moves the sensor itself
+        placement.segment = sensor.segment;
+        return placement;
+    };
+    suit.sources = [motion, env, profile, seed, start, placementOf = suit.placement](
+                       const SensorConfig& sensor,
+                       int index) -> std::unique_ptr<hs::PhysicalSource> {
+        auto spec = errorSpec(sensor.chip->name, profile);
+        if (!spec) {
+            return nullptr;
+        }
+        return std::make_unique<TrajectoryImuSource>(motion, env, placementOf(sensor, index), *spec,
+                                                     partSeed(seed, index), sensor, start);
     };
     return suit;
 }

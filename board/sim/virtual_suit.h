@@ -10,6 +10,7 @@
 #include "board/hardware.h"
 #include "board/sim/imu_model.h"
 #include "board/sim/motion.h"
+#include "board/sim/scripted_motion.h"
 #include "hal/sim/device_model.h"
 #include "hal/sim/imu_models.h"
 
@@ -55,10 +56,32 @@ struct ClipSuit {
     std::function<SensorPlacement(const SensorConfig& sensor, int index)> placement;
 };
 
+// The seed of the simulated part of board sensor `index` in a suit seeded with `suitSeed`: the
+// same chip (the same constant errors) whatever moves it, a clip or a calibration script.
+std::uint64_t partSeed(std::uint64_t suitSeed, int index);
+
 // The true mounting of sensor `index`: the nominal one turned by the strapping error of
 // ClipOptions::strapErrorDeg, drawn from the seed and the index.
 Quatd strappedMounting(const Quatd& nominal, double strapErrorDeg, std::uint64_t seed, int index);
 
 Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start);
+
+// Physical inputs for calibrating on the virtual suit: every sensor off the body, moved by the
+// same script, each the same simulated part (partSeed) as in a clip-driven suit of that seed.
+struct ScriptOptions {
+    Script script = Script::Rest;
+    ScriptTiming timing;
+    ErrorProfile profile = ErrorProfile::Typical;
+    std::uint64_t seed = 1;
+};
+
+struct ScriptedSuit {
+    std::shared_ptr<const ScriptedMotion> motion;
+    Environment environment;
+    SourceFactory sources;
+    std::function<SensorPlacement(const SensorConfig& sensor, int index)> placement;
+};
+
+ScriptedSuit scriptedSources(const ScriptOptions& options, Timestamp start);
 
 }  // namespace caphub::board::sim

@@ -2,6 +2,9 @@
 
 #include <cstdlib>
 
+#include <fmt/format.h>
+
+#include "board/loader.h"
 #include "firmware/version.h"
 
 namespace caphub::firmware {
@@ -52,6 +55,17 @@ fs::path defaultMotionClip() {
         }
     }
     return {};
+}
+
+std::optional<board::Board> loadCommandBoard(const std::string& nameOrPath) {
+    const auto loaded = board::loadBoardFile(resolveBoardFile(nameOrPath));
+    if (!loaded.ok()) {
+        for (const auto& e : loaded.errors) {
+            fmt::print(stderr, "{}\n", e.str());
+        }
+        return std::nullopt;
+    }
+    return *loaded.board;
 }
 
 }  // namespace caphub::firmware

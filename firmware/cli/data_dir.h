@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "board/board.h"
+
 namespace caphub::firmware {
 
 std::vector<std::filesystem::path> dataDirCandidates();
@@ -16,6 +18,10 @@ std::optional<std::filesystem::path> dataDir();
 
 // A board given as a path, or as the name of a shipped board ("sim-suit").
 std::filesystem::path resolveBoardFile(const std::string& nameOrPath);
+
+// Loads the board a command was given (a path or a shipped board's name); on errors prints each
+// ("file:line:column: key: ...") to stderr and returns nothing.
+std::optional<board::Board> loadCommandBoard(const std::string& nameOrPath);
 
 // The walking clip shipped with the sources (tests/data/bvh), the virtual suit's default motion;
 // empty when it cannot be found.

@@ -96,9 +96,15 @@ int printRecording(const std::string& path) {
     fmt::print("\nmetadata:\n");
     std::istringstream meta(r.metadata());
     std::string line;
+    std::string table;
     while (std::getline(meta, line)) {
+        if (line.rfind('[', 0) == 0) {
+            table = line;
+        }
+        // The embedded files are long: their size stands in for them.
         if (line.rfind("text = ", 0) == 0) {
-            line = "text = (the board file, " + std::to_string(line.size()) + " bytes)";
+            line = fmt::format("text = (the {} file, {} bytes)",
+                               table == "[calibration]" ? "calibration" : "board", line.size());
         }
         fmt::print("  {}\n", line);
     }

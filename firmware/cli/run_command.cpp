@@ -10,6 +10,7 @@
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
+#include "firmware/calibration_file.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
@@ -44,6 +45,7 @@ struct RunOptions {
     std::string profile = "typical";
     std::uint64_t seed = 1;
     bool rest = false;
+    std::string calibration;
 };
 
 std::string timestampName() {
@@ -54,16 +56,29 @@ std::string timestampName() {
 }
 
 int run(const RunOptions& o) {
-    const fs::path boardPath = resolveBoardFile(o.board);
-    const auto loaded = board::loadBoardFile(boardPath);
-    if (!loaded.ok()) {
-        for (const auto& e : loaded.errors) {
-            fmt::print(stderr, "{}\n", e.str());
-        }
+    const auto loaded = loadCommandBoard(o.board);
+    if (!loaded) {
         return kExitUsage;
     }
-    const board::Board& b = *loaded.board;
+    const board::Board& b = *loaded;
     const bool sim = board::allBusesSimulated(b);
+    FusionStage::Calibrations calibrations;
+    std::string calibrationText;
+    if (!o.calibration.empty()) {
+        auto set = readCalibrationFile(o.calibration);
+        if (!set) {
+            fmt::print(stderr, "caphub run: {}\n", set.error().message);
+            return kExitUsage;
+        }
+        std::vector<std::string> unknown;
+        calibrations = calibrationsFor(b, *set, &unknown);
+        for (const auto& name : unknown) {
+            log::logger(log::Category::Firmware)
+                .warn("{}: sensor '{}' is not on board '{}'; its calibration is unused",
+                      o.calibration, name, b.name);
+        }
+        calibrationText = formatCalibration(*set);
+    }
 
     std::unique_ptr<Clock> clock;
     if (sim) {
@@ -119,11 +134,12 @@ int run(const RunOptions& o) {
             return kExitRuntime;
         }
         recordingPath = dir / fmt::format("{}-{}.cap", timestampName(), b.name);
-        std::ifstream in(boardPath);
+        std::ifstream in(b.path);
         std::stringstream text;
         text << in.rdbuf();
-        auto writer = RecordingWriter::create(recordingPath.string(),
-                                              recordingMetadata(b, text.str(), versionLine()));
+        auto writer = RecordingWriter::create(
+            recordingPath.string(),
+            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText));
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
             return kExitRuntime;
@@ -131,7 +147,7 @@ int run(const RunOptions& o) {
         recorder = std::make_unique<RecorderStage>(std::move(*writer));
         capture.addStage(*recorder);
     }
-    FusionStage fusionStage(b, recorder ? &recorder->writer() : nullptr);
+    FusionStage fusionStage(b, recorder ? &recorder->writer() : nullptr, calibrations);
     capture.addStage(fusionStage);
 
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
@@ -204,6 +220,8 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
         ->capture_default_str();
     cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
+    cmd->add_option("--calibration", o->calibration,
+                    "Calibration file (caphub calibrate) applied before the filter and recorded");
     cmd->callback([&exitCode, o] { exitCode = run(*o); });
 }
 

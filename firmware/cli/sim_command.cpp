@@ -11,6 +11,7 @@
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
+#include "firmware/calibration_file.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
@@ -34,6 +35,7 @@ struct SimOptions {
     std::string sensor;
     bool all = false;
     std::string out;
+    std::string calibration;
 };
 
 // A sample is "movement" (the BROAD column) when the sensor truly turns faster than this or
@@ -118,20 +120,16 @@ int sim(const SimOptions& o) {
         fmt::print(stderr, "caphub sim: give either --sensor SEGMENT or --all\n");
         return kExitUsage;
     }
-    const fs::path boardPath = resolveBoardFile(o.board);
-    const auto loaded = board::loadBoardFile(boardPath);
-    if (!loaded.ok()) {
-        for (const auto& e : loaded.errors) {
-            fmt::print(stderr, "{}\n", e.str());
-        }
+    const auto loaded = loadCommandBoard(o.board);
+    if (!loaded) {
         return kExitUsage;
     }
-    const board::Board& b = *loaded.board;
+    const board::Board& b = *loaded;
     if (!board::allBusesSimulated(b)) {
         fmt::print(stderr,
                    "caphub sim: '{}' has real buses; the simulation needs a board whose buses "
                    "are all 'sim' (e.g. sim-suit, sim-upper10)\n",
-                   boardPath.string());
+                   b.path.string());
         return kExitUsage;
     }
     std::vector<int> wanted;
@@ -182,6 +180,16 @@ int sim(const SimOptions& o) {
         return kExitRuntime;
     }
 
+    std::vector<std::optional<fusion::SensorCalibration>> calibrations(b.sensors.size());
+    if (!o.calibration.empty()) {
+        auto set = readCalibrationFile(o.calibration);
+        if (!set) {
+            fmt::print(stderr, "caphub sim: {}\n", set.error().message);
+            return kExitUsage;
+        }
+        calibrations = calibrationsFor(b, *set, nullptr);
+    }
+
     std::vector<int> streamOf(b.sensors.size(), -1);
     std::vector<SensorStream> streams;
     for (int i : wanted) {
@@ -221,8 +229,12 @@ int sim(const SimOptions& o) {
         out.tS = static_cast<double>(tNs) * 1e-9;
         out.gyrRadS = s.sample.gyrRadps.cast<double>();
         out.accMps2 = s.sample.accMps2.cast<double>();
+        out.magUt = s.sample.magUt.cast<double>();
+        if (const auto& cal = calibrations[static_cast<std::size_t>(s.sensor)]) {
+            out = cal->apply(out);
+        }
         if ((s.sample.flags & hal::ImuSample::kMagFresh) != 0) {
-            st.lastMagUt = s.sample.magUt.cast<double>();
+            st.lastMagUt = out.magUt;
             st.haveMag = true;
             st.magErr2 += (st.lastMagUt - truth.magUt).squaredNorm();
             ++st.magCount;
@@ -266,9 +278,9 @@ int sim(const SimOptions& o) {
 
     fmt::print(
         "caphub sim: {} ({:.2f} s, {} frames) on board '{}', profile {}, seed {}, straps {:g} "
-        "deg\n",
+        "deg{}\n",
         clipOptions.bvh.filename().string(), simS, motion.frameCount(), b.name, o.profile, o.seed,
-        o.strapDeg);
+        o.strapDeg, o.calibration.empty() ? "" : ", calibrated with " + o.calibration);
     fmt::print("simulated {} sensors, {} samples, {} events in {:.3f} s: {:.1f}x real time\n\n",
                b.sensors.size(), samples, events, wallS, wallS > 0 ? simS / wallS : 0.0);
     fmt::print("{:<11} {:<13} {:>7} {:>8} {:>10} {:>10} {:>9} {:>5}  {}\n", "sensor", "segment",
@@ -324,6 +336,8 @@ void addSimCommand(CLI::App& app, int& exitCode) {
         ->capture_default_str();
     cmd->add_option("--sensor", o->sensor, "The sensor to write: its segment or its name");
     cmd->add_flag("--all", o->all, "Write every sensor, and the ground-truth skeleton");
+    cmd->add_option("--calibration", o->calibration,
+                    "Apply this calibration file (caphub calibrate) to the streams written");
     cmd->add_option("-o,--out", o->out, "FILE.csv.gz for --sensor, a folder for --all");
     cmd->callback([&exitCode, o] { exitCode = sim(*o); });
 }

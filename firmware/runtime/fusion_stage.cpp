@@ -2,10 +2,13 @@
 
 namespace caphub::firmware {
 
-FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer)
+FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer,
+                         Calibrations calibrations)
     : latest_(board.sensors.size(), Eigen::Quaternionf::Identity()),
       valid_(board.sensors.size(), false),
+      calibrations_(std::move(calibrations)),
       writer_(writer) {
+    calibrations_.resize(board.sensors.size());
     for (const auto& s : board.sensors) {
         fusion::FilterParams p;
         p.gyrRateHz = s.achievedOdrHz;
@@ -21,11 +24,20 @@ void FusionStage::onSample(const SensorSample& s) {
     }
     Filter& f = *filters_[static_cast<std::size_t>(s.sensor)];
     const auto& in = s.sample;
-    f.updateGyr({in.gyrRadps.x(), in.gyrRadps.y(), in.gyrRadps.z()});
-    f.updateAcc({in.accMps2.x(), in.accMps2.y(), in.accMps2.z()});
+    fusion::ImuSample raw;
+    raw.gyrRadS = in.gyrRadps.cast<double>();
+    raw.accMps2 = in.accMps2.cast<double>();
+    raw.magUt = in.magUt.cast<double>();
+    const auto& cal = calibrations_[static_cast<std::size_t>(s.sensor)];
+    const fusion::ImuSample c = cal ? cal->apply(raw) : raw;
+    f.updateGyr({static_cast<float>(c.gyrRadS.x()), static_cast<float>(c.gyrRadS.y()),
+                 static_cast<float>(c.gyrRadS.z())});
+    f.updateAcc({static_cast<float>(c.accMps2.x()), static_cast<float>(c.accMps2.y()),
+                 static_cast<float>(c.accMps2.z())});
     if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
         (in.flags & hal::ImuSample::kMagOverflow) == 0) {
-        f.updateMag({in.magUt.x(), in.magUt.y(), in.magUt.z()});
+        f.updateMag({static_cast<float>(c.magUt.x()), static_cast<float>(c.magUt.y()),
+                     static_cast<float>(c.magUt.z())});
     }
     const auto q = f.quat();
     Eigen::Quaternionf out(q.w, q.x, q.y, q.z);

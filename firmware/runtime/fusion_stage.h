@@ -1,14 +1,16 @@
 // The pipeline stage that fuses: one orientation filter per sensor, fed each sample at the
-// sensor's own rates (the magnetometer only when its reading is fresh), recording every
-// sensor's orientation next to its raw samples.
+// sensor's own rates (the magnetometer only when its reading is fresh) after the sensor's
+// calibration, recording every sensor's orientation next to its raw samples.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "board/board.h"
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
+#include "fusion/calibration/sensor_calibration.h"
 #include "fusion/orientation_filter.h"
 
 namespace caphub::firmware {
@@ -17,8 +19,11 @@ class FusionStage final : public PipelineStage {
 public:
     using Filter = fusion::OrientationFilter<fusion::FloatTypes>;
 
-    // writer may be null (no recording).
-    FusionStage(const board::Board& board, RecordingWriter* writer);
+    // Per board sensor, the calibration applied to its samples before its filter (none: raw).
+    using Calibrations = std::vector<std::optional<fusion::SensorCalibration>>;
+
+    // writer may be null (no recording); calibrations may be empty.
+    FusionStage(const board::Board& board, RecordingWriter* writer, Calibrations calibrations = {});
 
     void onSample(const SensorSample& s) override;
     void onEvent(const RuntimeEvent& e) override;
@@ -31,6 +36,7 @@ private:
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Eigen::Quaternionf> latest_;
     std::vector<bool> valid_;
+    Calibrations calibrations_;
     RecordingWriter* writer_;
     std::uint64_t updates_ = 0;
 };

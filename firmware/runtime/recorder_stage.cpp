@@ -86,7 +86,9 @@ void RecorderStage::finish(Timestamp) {
 }
 
 std::string recordingMetadata(const board::Board& board, const std::string& boardText,
-                              const std::string& softwareVersion) {
+                              const std::string& softwareVersion,
+                              const std::string& calibrationPath,
+                              const std::string& calibrationText) {
     const std::time_t now = std::time(nullptr);
     char when[32];
     std::strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
@@ -109,6 +111,13 @@ std::string recordingMetadata(const board::Board& board, const std::string& boar
                            board::segmentName(board.sensors[i].segment));
     }
     out += "]\n";
+    if (!calibrationText.empty()) {
+        // Applied before the filter: the recording's orientations depend on it, its raw samples
+        // do not.
+        out += "\n[calibration]\n";
+        out += fmt::format("path = {}\n", tomlString(calibrationPath));
+        out += fmt::format("text = {}\n", tomlString(calibrationText));
+    }
     return out;
 }
 

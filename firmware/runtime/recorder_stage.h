@@ -31,8 +31,11 @@ private:
 };
 
 // The metadata of a recording: the board file's text and where it came from, the software
-// version and the start time, as TOML.
+// version and the start time, and the calibration file applied (its path and text; omitted when
+// calibrationText is empty), as TOML.
 std::string recordingMetadata(const board::Board& board, const std::string& boardText,
-                              const std::string& softwareVersion);
+                              const std::string& softwareVersion,
+                              const std::string& calibrationPath = {},
+                              const std::string& calibrationText = {});
 
 }  // namespace caphub::firmware

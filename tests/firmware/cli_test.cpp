@@ -203,4 +203,38 @@ TEST(CliSim, ARealBoardIsRefused) {
     EXPECT_THAT(r.output, HasSubstr("has real buses"));
 }
 
+TEST(CliCalibrate, GyroThenAccelOnTheVirtualSuitFillOneFileThatRunRecords) {
+    const std::string file = ::testing::TempDir() + "caphub-cal.toml";
+    std::filesystem::remove(file);
+    const CliRun gyro = caphub("calibrate gyro --board sim-upper10 --file " + file);
+    ASSERT_EQ(gyro.exitCode, 0) << gyro.output;
+    EXPECT_THAT(gyro.output, HasSubstr("10 of 10 sensors calibrated"));
+    EXPECT_THAT(gyro.output, HasSubstr("true bias"));
+    const CliRun accel = caphub("calibrate accel --board sim-upper10 --file " + file);
+    ASSERT_EQ(accel.exitCode, 0) << accel.output;
+    // The second kind is merged into the file: both are there.
+    const CliRun text = shell("cat " + file);
+    EXPECT_THAT(text.output, HasSubstr("gyro_bias_rad_s"));
+    EXPECT_THAT(text.output, HasSubstr("acc_offset_m_s2"));
+
+    const std::string dir = ::testing::TempDir() + "caphub-cal-run";
+    std::filesystem::remove_all(dir);
+    const CliRun run = caphub("run --board sim-upper10 --duration 1 --speed 20 --calibration " +
+                              file + " --out " + dir);
+    ASSERT_EQ(run.exitCode, 0) << run.output;
+    const CliRun info = shell(std::string(CAPHUB_BINARY) + " info " + dir + "/*.cap");
+    EXPECT_THAT(info.output, HasSubstr("[calibration]"));
+    EXPECT_THAT(info.output, HasSubstr("text = (the calibration file"));
+}
+
+TEST(CliCalibrate, AMalformedCalibrationFileIsAUsageErrorAndIsNotOverwritten) {
+    const std::string file = writeTemp("caphub-bad-cal.toml",
+                                       "format = 1\n[sensors.pelvis]\n"
+                                       "gyro_bias_rad_s = [1, 2]\n");
+    const CliRun r = caphub("calibrate gyro --board sim-upper10 --file " + file);
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("caphub-bad-cal.toml:3"));
+    EXPECT_THAT(shell("cat " + file).output, HasSubstr("[1, 2]"));
+}
+
 }  // namespace

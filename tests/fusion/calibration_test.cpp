@@ -135,5 +135,58 @@ TEST(SensorCalibration, AppliesEachPartToItsSensorOnly) {
     EXPECT_EQ(s.magUt, Vec3d(2, 0, -2));
 }
 
+// A stream of the six positions in a shuffled order, each held `holdS` at 100 Hz, with turning
+// (a rate of 60 deg/s, gravity swinging) between them.
+struct SixPositionStream {
+    std::vector<Vec3d> acc;
+    std::vector<Vec3d> gyr;
+};
+
+SixPositionStream sixPositionStream(double holdS, const Vec3d& offset, const Vec3d& scale) {
+    const Vec3d up[6] = {Vec3d::UnitY(),  -Vec3d::UnitZ(), Vec3d::UnitX(),
+                         -Vec3d::UnitY(), Vec3d::UnitZ(),  -Vec3d::UnitX()};
+    SixPositionStream s;
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0.0, 0.02);
+    for (int k = 0; k < 6; ++k) {
+        for (int i = 0; i < static_cast<int>(holdS * 100); ++i) {
+            const Vec3d g = 9.81 * up[k];
+            s.acc.push_back(g.cwiseProduct(scale) + offset + Vec3d(noise(rng), noise(rng), 0));
+            s.gyr.push_back(Vec3d(noise(rng), noise(rng), noise(rng)) * 0.01);
+        }
+        for (int i = 0; i < 100; ++i) {  // one second of turning
+            const double a = i * 0.0628;
+            s.acc.push_back(9.81 * Vec3d(std::sin(a), std::cos(a), 0.3) + offset);
+            s.gyr.push_back(Vec3d(0, 0, 60 * kDeg));
+        }
+    }
+    return s;
+}
+
+TEST(AccelSixPositions, AreFoundInAStreamAndCalibrate) {
+    const Vec3d offset(0.3, -0.2, 0.5);
+    const Vec3d scale(1.01, 0.99, 1.005);
+    const auto s = sixPositionStream(3.0, offset, scale);
+    auto means = findSixPositions(s.acc, s.gyr, 100.0);
+    ASSERT_TRUE(means) << means.error().message;
+    auto r = calibrateAccelSixPosition(*means);
+    ASSERT_TRUE(r) << r.error().message;
+    // Means of >= 250 samples of 0.02 m/s^2 noise: standard error 0.0013 m/s^2; 0.01 is 7 sigma.
+    EXPECT_LT((r->offsetMps2 - offset).cwiseAbs().maxCoeff(), 0.01);
+    EXPECT_LT((r->scale - scale).cwiseAbs().maxCoeff(), 0.001);
+}
+
+TEST(AccelSixPositions, TooShortAHoldNamesTheMissingPosition) {
+    auto s = sixPositionStream(3.0, Vec3d::Zero(), Vec3d::Ones());
+    // The -x position (the last hold) cut to half a second.
+    const std::size_t lastHold = 5 * 400;
+    s.acc.erase(s.acc.begin() + lastHold + 50, s.acc.begin() + lastHold + 300);
+    s.gyr.erase(s.gyr.begin() + lastHold + 50, s.gyr.begin() + lastHold + 300);
+    auto means = findSixPositions(s.acc, s.gyr, 100.0);
+    ASSERT_FALSE(means);
+    EXPECT_NE(means.error().message.find("-x up"), std::string::npos) << means.error().message;
+    EXPECT_EQ(means.error().message.find("+x up"), std::string::npos) << means.error().message;
+}
+
 }  // namespace
 }  // namespace caphub::fusion

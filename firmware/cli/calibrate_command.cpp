@@ -1,0 +1,354 @@
+// caphub calibrate gyro|accel|mag: the sensor calibrations of a board, measured on the suit and
+// merged into a calibration file (firmware/calibration_file.h) that `caphub run` applies before
+// the filter and writes into its recordings. On a virtual suit the sensors are taken off the
+// body and moved by a script (board/sim/scripted_motion.h); the table then also shows the
+// simulated parts' true errors beside the estimates. On a hub the person is told what to do.
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <optional>
+
+#include <fmt/format.h>
+
+#include "board/loader.h"
+#include "board/sim/virtual_suit.h"
+#include "firmware/calibration_file.h"
+#include "firmware/cli/app.h"
+#include "firmware/cli/commands.h"
+#include "firmware/cli/data_dir.h"
+#include "firmware/runtime/capture.h"
+#include "firmware/runtime/stepped_capture.h"
+#include "fusion/calibration/accel_six_position.h"
+#include "fusion/calibration/ellipsoid_fit.h"
+#include "fusion/calibration/gyro_bias.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace bs = board::sim;
+
+constexpr double kRadToDeg = 180.0 / hal::kPi;
+
+enum class Kind { Gyro, Accel, Mag };
+
+struct CalibrateOptions {
+    std::string board = "sim-suit";
+    std::string file = "calibration.toml";
+    double durationS = 0;  // 0: the kind's default
+    std::string profile = "typical";
+    std::uint64_t seed = 1;
+};
+
+// What each board sensor delivered during the calibration.
+struct Streams {
+    std::vector<std::vector<Vec3d>> gyr;
+    std::vector<std::vector<Vec3d>> acc;
+    std::vector<std::vector<Vec3d>> mag;  // fresh magnetometer readings only
+    std::vector<double> rateHz;
+    bool virtualSuit = false;
+    std::vector<bs::ImuConstants> truth;  // virtual suit: each simulated part's true errors
+
+    explicit Streams(const board::Board& b)
+        : gyr(b.sensors.size()), acc(b.sensors.size()), mag(b.sensors.size()) {
+        for (const auto& s : b.sensors) {
+            rateHz.push_back(s.achievedOdrHz);
+        }
+    }
+
+    void add(const SensorSample& s) {
+        const auto i = static_cast<std::size_t>(s.sensor);
+        gyr[i].push_back(s.sample.gyrRadps.cast<double>());
+        acc[i].push_back(s.sample.accMps2.cast<double>());
+        if ((s.sample.flags & hal::ImuSample::kMagFresh) != 0 &&
+            (s.sample.flags & hal::ImuSample::kMagOverflow) == 0) {
+            mag[i].push_back(s.sample.magUt.cast<double>());
+        }
+    }
+};
+
+double defaultDurationS(Kind k, const bs::ScriptTiming& timing) {
+    switch (k) {
+        case Kind::Gyro:
+            return 5.0;
+        case Kind::Accel:
+            return 6 * timing.holdS + 5 * timing.moveS;
+        case Kind::Mag:
+            return timing.tumbleS;
+    }
+    return 0;
+}
+
+// The virtual suit, its sensors moved by the kind's script, on a stepped clock.
+Result<Streams> collectVirtual(const board::Board& b, Kind kind, double durationS,
+                               bs::ErrorProfile profile, std::uint64_t seed) {
+    bs::ScriptOptions so;
+    so.script = kind == Kind::Gyro    ? bs::Script::Rest
+                : kind == Kind::Accel ? bs::Script::SixPositions
+                                      : bs::Script::Tumble;
+    so.profile = profile;
+    so.seed = seed;
+    so.timing.tumbleS = durationS;
+    // The sensors start (reset, configuration) in the first half second; the script then runs.
+    SimulatedClock clock(Timestamp{std::chrono::seconds(1)});
+    const Timestamp scriptStart = clock.now() + std::chrono::milliseconds(500);
+    bs::ScriptedSuit scripted = bs::scriptedSources(so, scriptStart);
+    auto suit = bs::buildVirtualSuit(b, clock, scripted.sources);
+    if (!suit) {
+        return suit.error();
+    }
+    Streams out(b);
+    out.virtualSuit = true;
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        const auto& sc = b.sensors[i];
+        auto spec = bs::errorSpec(sc.chip->name, profile);
+        if (!spec) {
+            return spec.error();
+        }
+        const bs::VirtualImu part(*scripted.motion, scripted.environment,
+                                  scripted.placement(sc, static_cast<int>(i)), *spec,
+                                  bs::partSeed(seed, static_cast<int>(i)), sc.achievedOdrHz,
+                                  sc.magOdrHz > 0 ? sc.magOdrHz : sc.achievedOdrHz);
+        out.truth.push_back(part.constants());
+    }
+    SteppedCapture capture(*suit, clock);
+    capture.runUntil(scriptStart + durationFromSeconds(durationS),
+                     [&out, scriptStart](const SensorSample& s) {
+                         if (s.sample.t >= scriptStart) {
+                             out.add(s);
+                         }
+                     });
+    return out;
+}
+
+// Collects every sample on the pipeline thread; read once the capture has stopped.
+class CollectorStage final : public PipelineStage {
+public:
+    explicit CollectorStage(Streams& streams) : streams_(streams) {}
+    void onSample(const SensorSample& s) override { streams_.add(s); }
+    void onEvent(const RuntimeEvent& e) override {
+        if (e.kind == RuntimeEvent::Kind::SensorLost) {
+            fmt::print(stderr, "caphub calibrate: sensor {} stopped answering\n", e.sensor);
+        }
+    }
+
+private:
+    Streams& streams_;
+};
+
+Result<Streams> collectHub(const board::Board& b, double durationS) {
+    MonotonicClock clock;
+    auto suit = board::openLinuxSuit(b, clock);
+    if (!suit) {
+        return suit.error();
+    }
+    Streams out(b);
+    CollectorStage collector(out);
+    Capture capture(*suit, clock);
+    capture.addStage(collector);
+    capture.start(durationFromSeconds(durationS));
+    (void)capture.wait();
+    return out;
+}
+
+std::string vec(const Vec3d& v, double scale, int decimals) {
+    return fmt::format("[{:.{}f} {:.{}f} {:.{}f}]", v.x() * scale, decimals, v.y() * scale,
+                       decimals, v.z() * scale, decimals);
+}
+
+// Runs one kind of calibration on every sensor; returns the number of sensors calibrated.
+int calibrateAll(Kind kind, const board::Board& b, const Streams& st, CalibrationSet& set) {
+    int done = 0;
+    const bool truth = st.virtualSuit;
+    switch (kind) {
+        case Kind::Gyro:
+            fmt::print("{:<11} {:>8} {:>26} {:>9}{}\n", "sensor", "samples", "bias deg/s",
+                       "std dps", truth ? fmt::format(" {:>26} {:>9}", "true bias", "error") : "");
+            break;
+        case Kind::Accel:
+            fmt::print("{:<11} {:>29} {:>26} {:>9}{}\n", "sensor", "offset m/s^2", "scale", "resid",
+                       truth ? fmt::format(" {:>29} {:>9}", "true offset", "error") : "");
+            break;
+        case Kind::Mag:
+            fmt::print("{:<11} {:>8} {:>26} {:>9} {:>8} {:>9}{}\n", "sensor", "readings",
+                       "hard iron uT", "norm uT", "quality%", "coverage",
+                       truth ? fmt::format(" {:>26} {:>9}", "true hard iron", "error") : "");
+            break;
+    }
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        const std::string& name = b.sensors[i].name;
+        fusion::SensorCalibration& cal = set[name];
+        std::string failure;
+        switch (kind) {
+            case Kind::Gyro: {
+                const auto r = fusion::estimateGyroBias(st.gyr[i]);
+                if (!r) {
+                    failure = r.error().message;
+                    break;
+                }
+                cal.hasGyro = true;
+                cal.gyroBiasRadS = r->biasRadS;
+                fmt::print("{:<11} {:>8} {:>26} {:>9.3f}", name, r->samples,
+                           vec(r->biasRadS, kRadToDeg, 3), r->stdRadS.maxCoeff() * kRadToDeg);
+                if (truth) {
+                    const Vec3d& t = st.truth[i].gyroBiasRadS;
+                    fmt::print(" {:>26} {:>9.3f}", vec(t, kRadToDeg, 3),
+                               (r->biasRadS - t).norm() * kRadToDeg);
+                }
+                break;
+            }
+            case Kind::Accel: {
+                auto means = fusion::findSixPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
+                if (!means) {
+                    failure = means.error().message;
+                    break;
+                }
+                const auto r = fusion::calibrateAccelSixPosition(*means);
+                if (!r) {
+                    failure = r.error().message;
+                    break;
+                }
+                cal.hasAccel = true;
+                cal.accOffsetMps2 = r->offsetMps2;
+                cal.accScale = r->scale;
+                fmt::print("{:<11} {:>29} {:>26} {:>9.4f}", name, vec(r->offsetMps2, 1.0, 4),
+                           vec(r->scale, 1.0, 5), r->residualMps2);
+                if (truth) {
+                    const Vec3d& t = st.truth[i].accelBiasMps2;
+                    fmt::print(" {:>29} {:>9.4f}", vec(t, 1.0, 4), (r->offsetMps2 - t).norm());
+                }
+                break;
+            }
+            case Kind::Mag: {
+                const auto r = fusion::fitEllipsoid(st.mag[i]);
+                if (!r) {
+                    failure = r.error().message;
+                    break;
+                }
+                cal.hasMag = true;
+                cal.magHardIronUt = r->hardIronUt;
+                cal.magSoftIron = r->softIron;
+                cal.magQualityPct = r->qualityPct;
+                cal.magCoverage = r->coverage;
+                fmt::print("{:<11} {:>8} {:>26} {:>9.2f} {:>8.2f} {:>9.2f}", name, st.mag[i].size(),
+                           vec(r->hardIronUt, 1.0, 2), r->fieldNormUt, r->qualityPct, r->coverage);
+                if (truth) {
+                    const Vec3d& t = st.truth[i].magOffsetUt;
+                    fmt::print(" {:>26} {:>9.3f}", vec(t, 1.0, 2), (r->hardIronUt - t).norm());
+                }
+                break;
+            }
+        }
+        if (!failure.empty()) {
+            fmt::print("{:<11} not calibrated: {}", name, failure);
+        } else {
+            ++done;
+        }
+        fmt::print("\n");
+    }
+    return done;
+}
+
+int calibrate(Kind kind, const CalibrateOptions& o) {
+    const auto loaded = loadCommandBoard(o.board);
+    if (!loaded) {
+        return kExitUsage;
+    }
+    const board::Board& b = *loaded;
+    const auto profile = bs::parseErrorProfile(o.profile);
+    if (!profile) {
+        fmt::print(stderr, "caphub calibrate: unknown profile '{}' (ideal, typical or harsh)\n",
+                   o.profile);
+        return kExitUsage;
+    }
+    // An existing file is updated: the other kinds and other sensors' entries stay.
+    CalibrationSet set;
+    std::error_code ec;
+    if (fs::exists(o.file, ec)) {
+        auto existing = readCalibrationFile(o.file);
+        if (!existing) {
+            fmt::print(stderr, "caphub calibrate: {}\n", existing.error().message);
+            return kExitUsage;
+        }
+        set = std::move(*existing);
+    }
+
+    const double durationS = o.durationS > 0 ? o.durationS : defaultDurationS(kind, {});
+    const bool sim = board::allBusesSimulated(b);
+    static constexpr const char* kWhat[] = {"gyroscope bias", "accelerometer offset and scale",
+                                            "magnetometer hard and soft iron"};
+    static constexpr const char* kTodo[] = {
+        "lay every sensor still (on a table, off the body)",
+        "turn each sensor so that each of its faces points up in turn (six positions), holding "
+        "each still for 2-3 s",
+        "turn each sensor slowly through every direction, away from metal and magnets"};
+    const int k = static_cast<int>(kind);
+    fmt::print("caphub calibrate: {} of {} sensors of '{}', {:g} s\n", kWhat[k], b.sensors.size(),
+               b.name, durationS);
+    if (sim) {
+        fmt::print("virtual suit ({} profile, seed {}): the sensors are scripted to {}\n\n",
+                   o.profile, o.seed, kTodo[k]);
+    } else {
+        fmt::print("now {}.\n\n", kTodo[k]);
+    }
+    auto streams =
+        sim ? collectVirtual(b, kind, durationS, *profile, o.seed) : collectHub(b, durationS);
+    if (!streams) {
+        fmt::print(stderr, "caphub calibrate: {}\n", streams.error().message);
+        return kExitRuntime;
+    }
+    const int done = calibrateAll(kind, b, *streams, set);
+    if (done == 0) {
+        fmt::print(stderr, "caphub calibrate: no sensor was calibrated; '{}' is unchanged\n",
+                   o.file);
+        return kExitRuntime;
+    }
+    if (auto w = writeCalibrationFile(o.file, set); !w) {
+        fmt::print(stderr, "caphub calibrate: {}\n", w.error().message);
+        return kExitRuntime;
+    }
+    fmt::print("\n{} of {} sensors calibrated; written to {}\n", done, b.sensors.size(), o.file);
+    return done == static_cast<int>(b.sensors.size()) ? kExitOk : kExitRuntime;
+}
+
+}  // namespace
+
+void addCalibrateCommand(CLI::App& app, int& exitCode) {
+    CLI::App* cmd = app.add_subcommand(
+        "calibrate", "Calibrate the sensors: gyroscope bias, accelerometer, magnetometer");
+    cmd->require_subcommand(1);
+    struct Sub {
+        const char* name;
+        Kind kind;
+        const char* help;
+    };
+    static constexpr Sub kSubs[] = {
+        {"gyro", Kind::Gyro, "Gyroscope bias: every sensor lying still (default 5 s)"},
+        {"accel", Kind::Accel,
+         "Accelerometer offset and scale: each sensor turned through six positions (default "
+         "25.5 s)"},
+        {"mag", Kind::Mag,
+         "Magnetometer hard and soft iron: each sensor turned through every direction (default "
+         "60 s)"},
+    };
+    for (const Sub& s : kSubs) {
+        auto o = std::make_shared<CalibrateOptions>();
+        CLI::App* sub = cmd->add_subcommand(s.name, s.help);
+        sub->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+            ->capture_default_str();
+        sub->add_option("-f,--file", o->file, "Calibration file to update (created when missing)")
+            ->capture_default_str();
+        sub->add_option("-d,--duration", o->durationS, "Seconds to measure (0: the default)")
+            ->check(CLI::NonNegativeNumber);
+        sub->add_option("--profile", o->profile,
+                        "Virtual suit: sensor errors: ideal, typical, harsh")
+            ->capture_default_str();
+        sub->add_option("--seed", o->seed,
+                        "Virtual suit: seed of the sensor errors (the same parts as run/sim)")
+            ->capture_default_str();
+        sub->callback([&exitCode, o, kind = s.kind] { exitCode = calibrate(kind, *o); });
+    }
+}
+
+}  // namespace caphub::firmware
