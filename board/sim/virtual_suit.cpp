@@ -8,6 +8,7 @@
 
 #include "board/sim/bvh.h"
 #include "board/sim/joint_map.h"
+#include "board/sim/lead_in.h"
 #include "board/sim/scripted_motion.h"
 #include "hal/imu_sample.h"
 #include "hal/sim/sim_bus.h"
@@ -233,7 +234,14 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     SegmentState pelvis;
     suit.motion->evaluate(board::Segment::Pelvis, 0, pelvis);
     suit.environment = environmentFor(options.profile, pelvis.positionM);
-    const auto motionPtr = suit.motion;
+    suit.trajectory = suit.motion;
+    if (options.tposeHoldS > 0) {
+        auto leadIn = std::make_shared<const LeadInMotion>(suit.motion, options.tposeHoldS,
+                                                           options.tposeBlendS);
+        suit.leadInNs = leadIn->leadInNs();
+        suit.trajectory = leadIn;
+    }
+    const auto motionPtr = suit.trajectory;
     const Environment env = suit.environment;
     const ErrorProfile profile = options.profile;
     const std::uint64_t seed = options.seed;

@@ -46,10 +46,18 @@ struct ClipOptions {
     // off what the wearer intended (docs/virtual-suit.md); 0 puts every sensor exactly at its
     // nominal mounting. Independent of the error profile: it is the fit of the suit, not the chip.
     double strapErrorDeg = 10;
+    // Seconds the subject first stands in the T-pose (for a body calibration), before moving
+    // into the clip over tposeBlendS (board/sim/lead_in.h); 0: the clip starts at once.
+    double tposeHoldS = 0;
+    double tposeBlendS = 1.5;
 };
 
 struct ClipSuit {
     std::shared_ptr<const Motion> motion;
+    // What the sensors follow: the motion, after the T-pose lead-in when there is one; the
+    // clip's time 0 is leadInNs into it.
+    std::shared_ptr<const SegmentTrajectory> trajectory;
+    std::int64_t leadInNs = 0;
     Environment environment;
     SourceFactory sources;
     // Where a board sensor truly sits on its segment (the mounting the calibration must find).

@@ -15,6 +15,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/recorder_stage.h"
@@ -46,6 +47,8 @@ struct RunOptions {
     std::uint64_t seed = 1;
     bool rest = false;
     std::string calibration;
+    std::string bodyCalibration = "none";  // tpose, npose, none
+    double poseRateHz = 60;
 };
 
 std::string timestampName() {
@@ -55,12 +58,65 @@ std::string timestampName() {
     return buf;
 }
 
+// The body's figures: the calibration and, on the virtual suit, how far its mountings are from
+// the sensors' true (strapped) ones; the poses and their latency.
+void printBody(const BodyStage& body, const board::Board& b,
+               const std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)>&
+                   placementOf) {
+    const auto& cal = body.calibration();
+    if (!body.calibrationError().empty()) {
+        fmt::print("\nbody calibration failed: {}", body.calibrationError());
+    } else if (!body.calibrated()) {
+        fmt::print("\nbody: not calibrated (the capture ended first)");
+    } else {
+        fmt::print("\nbody calibration: {}", cal.method == body::CalibrationMethod::None
+                                                 ? std::string("nominal mountings")
+                                                 : std::string(body::toString(cal.method)));
+        if (placementOf && cal.method != body::CalibrationMethod::None) {
+            double sum = 0;
+            double worst = 0;
+            double nominalSum = 0;
+            for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+                const auto& sc = b.sensors[i];
+                const Quatd truth = placementOf(sc, static_cast<int>(i)).mounting;
+                const double e =
+                    cal.mounting[static_cast<std::size_t>(sc.segment)].angularDistance(truth) *
+                    180.0 / hal::kPi;
+                sum += e;
+                worst = std::max(worst, e);
+                nominalSum += sc.mounting.angularDistance(truth) * 180.0 / hal::kPi;
+            }
+            const double n = static_cast<double>(b.sensors.size());
+            fmt::print(
+                "; mountings off the true (strapped) ones by {:.2f} deg mean, {:.2f} deg max "
+                "(the board's nominal ones: {:.2f} deg mean)",
+                sum / n, worst, nominalSum / n);
+        }
+    }
+    fmt::print("\n{} poses; latency data-ready -> pose written p50 {:.3f} ms, p99 {:.3f} ms",
+               body.poses(), toSeconds(body.latencyPercentile(0.5)) * 1e3,
+               toSeconds(body.latencyPercentile(0.99)) * 1e3);
+}
+
 int run(const RunOptions& o) {
     const auto loaded = loadCommandBoard(o.board);
     if (!loaded) {
         return kExitUsage;
     }
     const board::Board& b = *loaded;
+    BodyStage::Options bodyOptions;
+    bodyOptions.rateHz = o.poseRateHz;
+    if (o.bodyCalibration == "tpose") {
+        bodyOptions.calibrate = body::ReferencePoseKind::T;
+    } else if (o.bodyCalibration == "npose") {
+        bodyOptions.calibrate = body::ReferencePoseKind::N;
+    } else if (o.bodyCalibration != "none") {
+        fmt::print(stderr, "caphub run: --calibrate: expected tpose, npose or none, got '{}'\n",
+                   o.bodyCalibration);
+        return kExitUsage;
+    }
+    // The pose is held from the start until the orientations have been averaged, plus a margin.
+    const double holdS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
     const bool sim = board::allBusesSimulated(b);
     FusionStage::Calibrations calibrations;
     std::string calibrationText;
@@ -87,12 +143,21 @@ int run(const RunOptions& o) {
         clock = std::make_unique<MonotonicClock>();
     }
     board::sim::SourceFactory sources;
+    std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)> placementOf;
     std::string motionText = "at rest";
     if (sim && !o.rest) {
         board::sim::ClipOptions clip;
         clip.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
         clip.map = o.map;
         clip.seed = o.seed;
+        if (bodyOptions.calibrate == body::ReferencePoseKind::T) {
+            clip.tposeHoldS = holdS;  // the virtual subject stands in the T-pose first
+        } else if (bodyOptions.calibrate) {
+            fmt::print(stderr,
+                       "caphub run: the virtual suit stands in the T-pose only "
+                       "(--calibrate tpose)\n");
+            return kExitUsage;
+        }
         const auto profile = board::sim::parseErrorProfile(o.profile);
         if (!profile) {
             fmt::print(stderr, "caphub run: unknown profile '{}' (ideal, typical or harsh)\n",
@@ -110,6 +175,7 @@ int run(const RunOptions& o) {
                 return kExitUsage;
             }
             sources = suitMotion->sources;
+            placementOf = suitMotion->placement;
             motionText = fmt::format("{} ({:.1f} s, {} profile)", clip.bvh.filename().string(),
                                      static_cast<double>(suitMotion->motion->durationNs()) * 1e-9,
                                      o.profile);
@@ -149,6 +215,14 @@ int run(const RunOptions& o) {
     }
     FusionStage fusionStage(b, recorder ? &recorder->writer() : nullptr, calibrations);
     capture.addStage(fusionStage);
+    BodyStage bodyStage(b, fusionStage, recorder ? &recorder->writer() : nullptr, *clock,
+                        bodyOptions);
+    capture.addStage(bodyStage);
+    if (bodyOptions.calibrate && !sim) {
+        fmt::print("stand still in the {} for the first {:.0f} s\n",
+                   bodyOptions.calibrate == body::ReferencePoseKind::T ? "T-pose" : "N-pose",
+                   holdS);
+    }
 
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
                b.buses.size(), b.name, sim ? "virtual suit, motion " + motionText : "hub buses",
@@ -176,6 +250,7 @@ int run(const RunOptions& o) {
         }
     }
     fmt::print("\n{} orientation updates", fusionStage.updates());
+    printBody(bodyStage, b, placementOf);
     fmt::print(
         "\n{} samples in {:.2f} s, {} dropped, {} sensor losses; latency data-ready -> "
         "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",
@@ -220,6 +295,13 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
         ->capture_default_str();
     cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
+    cmd->add_option("--calibrate", o->bodyCalibration,
+                    "Body calibration at the start: tpose, npose (the subject holds the pose "
+                    "for the first seconds) or none (the board's nominal mountings)")
+        ->capture_default_str();
+    cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Calibration file (caphub calibrate) applied before the filter and recorded");
     cmd->callback([&exitCode, o] { exitCode = run(*o); });

@@ -24,7 +24,8 @@ cap::EventKind toEventKind(RuntimeEvent::Kind k) {
     return cap::EventKind::SensorLost;
 }
 
-// TOML basic string with the characters TOML requires escaped.
+}  // namespace
+
 std::string tomlString(const std::string& s) {
     std::string out = "\"";
     for (char c : s) {
@@ -51,8 +52,6 @@ std::string tomlString(const std::string& s) {
     }
     return out + "\"";
 }
-
-}  // namespace
 
 void RecorderStage::check(int r) {
     if (r < 0 && !reported_) {

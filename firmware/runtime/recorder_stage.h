@@ -30,6 +30,9 @@ private:
     bool reported_ = false;
 };
 
+// A TOML basic string (quoted, with the characters TOML requires escaped), for metadata.
+std::string tomlString(const std::string& s);
+
 // The metadata of a recording: the board file's text and where it came from, the software
 // version and the start time, and the calibration file applied (its path and text; omitted when
 // calibrationText is empty), as TOML.

@@ -1,0 +1,169 @@
+#include "firmware/runtime/body_stage.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "firmware/runtime/recorder_stage.h"
+#include "hal/core/log.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+body::Skeleton skeletonFor(const board::Board& board) {
+    auto d = body::dimensionsFromSubject(board.subject);
+    // The loader has checked the subject; the defaults stand in should it ever not be.
+    return body::Skeleton(d ? *d : *body::dimensionsFromSubject(board::SubjectConfig{}));
+}
+
+body::SegmentMask maskOf(const board::Board& board) {
+    body::SegmentMask m = 0;
+    for (const auto& s : board.sensors) {
+        m |= body::bit(s.segment);
+    }
+    return m;
+}
+
+}  // namespace
+
+BodyStage::BodyStage(const board::Board& board, const FusionStage& fusion, RecordingWriter* writer,
+                     Clock& clock, const Options& options)
+    : board_(board),
+      fusion_(fusion),
+      writer_(writer),
+      clock_(clock),
+      options_(options),
+      period_(periodFromHz(options.rateHz)),
+      solver_(skeletonFor(board), maskOf(board)),
+      mask_(maskOf(board)),
+      sensorOfSegment_(body::kSegmentCount, -1),
+      sum_(board.sensors.size(), Eigen::Vector4d::Zero()),
+      count_(board.sensors.size(), 0) {
+    nominal_.fill(Quatd::Identity());
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        const auto seg = static_cast<std::size_t>(board.sensors[i].segment);
+        sensorOfSegment_[seg] = static_cast<int>(i);
+        nominal_[seg] = board.sensors[i].mounting;
+    }
+    latencyNs_.reserve(1 << 16);
+    if (!options_.calibrate) {
+        // No calibration pose: the nominal mountings, the subject facing north.
+        calibration_.mask = mask_;
+        calibration_.mounting = nominal_;
+        solver_.setCalibration(calibration_);
+        calibrated_ = true;
+    }
+}
+
+void BodyStage::onSample(const SensorSample& s) {
+    const Timestamp t = s.sample.t;
+    if (!first_) {
+        first_ = t;
+        nextFrame_ = t;
+    }
+    if (!calibrated_ && options_.calibrate && calibrationError_.empty()) {
+        const Timestamp from = *first_ + options_.settle;
+        if (t >= from + options_.average) {
+            calibrate(t);
+        } else if (t >= from) {
+            Eigen::Quaternionf q;
+            const auto i = static_cast<std::size_t>(s.sensor);
+            if (fusion_.orientation(s.sensor, q)) {
+                Eigen::Vector4d v(q.w(), q.x(), q.y(), q.z());
+                // q and -q are one rotation: add each on the side of the running sum.
+                if (v.dot(sum_[i]) < 0) {
+                    v = -v;
+                }
+                sum_[i] += v;
+                ++count_[i];
+            }
+        }
+        return;
+    }
+    if (!calibrated_) {
+        return;
+    }
+    if (t >= nextFrame_) {
+        solveFrame(t, t);
+        // The next frame on the grid; after a gap, the first grid point after t.
+        nextFrame_ += period_;
+        if (nextFrame_ <= t) {
+            nextFrame_ = t + period_;
+        }
+    }
+}
+
+void BodyStage::onEvent(const RuntimeEvent&) {}
+
+void BodyStage::calibrate(Timestamp t) {
+    body::SensorFrame frame;
+    for (std::size_t i = 0; i < board_.sensors.size(); ++i) {
+        if (count_[i] == 0) {
+            continue;  // no orientation: the segment stays uncalibrated
+        }
+        const Eigen::Vector4d m = sum_[i].normalized();
+        const auto seg = static_cast<std::size_t>(board_.sensors[i].segment);
+        frame.qEnuSensor[seg] = Quatd(m[0], m[1], m[2], m[3]);
+        frame.mask |= body::bit(board_.sensors[i].segment);
+    }
+    body::CalibrationOptions copt;
+    copt.nominalMounting = nominal_;
+    auto cal = body::calibrateOnePose(*options_.calibrate, frame, copt, toNs(t));
+    if (!cal) {
+        calibrationError_ = cal.error().message;
+        log::logger(log::Category::Body).error("body calibration failed: {}", calibrationError_);
+        return;
+    }
+    calibration_ = *cal;
+    solver_.setCalibration(calibration_);
+    solver_.resetRoot();
+    calibrated_ = true;
+    nextFrame_ = t;
+    if (writer_ != nullptr && writer_->error() == 0) {
+        const std::string text = body::toText(calibration_);
+        (void)writer_->writeEvent(
+            t, cap::EventKind::Calibrated, -1, 0,
+            fmt::format("body calibration: {} pose, {} segments",
+                        body::toString(calibration_.method), std::popcount(calibration_.mask)));
+        (void)writer_->writeMetadata(t, "[body_calibration]\ntext = " + tomlString(text) + "\n");
+    }
+}
+
+void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
+    body::SensorFrame frame;
+    for (int seg = 0; seg < body::kSegmentCount; ++seg) {
+        const int i = sensorOfSegment_[static_cast<std::size_t>(seg)];
+        Eigen::Quaternionf q;
+        if (i >= 0 && fusion_.orientation(i, q)) {
+            frame.qEnuSensor[static_cast<std::size_t>(seg)] = q.cast<double>();
+            frame.mask |= body::SegmentMask{1} << seg;
+        }
+    }
+    const double dtS = poses_ == 0 ? toSeconds(period_) : toSeconds(t - lastFrame_);
+    lastFrame_ = t;
+    const body::Pose& pose = solver_.solve(frame, dtS);
+    ++poses_;
+    if (writer_ != nullptr && writer_->error() == 0) {
+        for (std::size_t j = 0; j < joints_.size(); ++j) {
+            joints_[j] = pose.qLocal[j].cast<float>();
+        }
+        (void)writer_->writePose(t, pose.positionM[0].cast<float>(), joints_);
+    }
+    latencyNs_.push_back(toNs(clock_.now() - newestSample));
+}
+
+Duration BodyStage::latencyPercentile(double p) const {
+    if (latencyNs_.empty()) {
+        return Duration{0};
+    }
+    std::vector<std::int64_t> v = latencyNs_;
+    const auto k =
+        static_cast<std::size_t>(std::clamp(p, 0.0, 1.0) * static_cast<double>(v.size() - 1) + 0.5);
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return Duration{v[k]};
+}
+
+}  // namespace caphub::firmware

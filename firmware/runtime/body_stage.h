@@ -1,0 +1,77 @@
+// The pipeline stage that drives the body: optionally a calibration in a reference pose at the
+// start of the capture (the subject stands still in it while the filters settle), then the body
+// solver at the output rate on the latest sensor orientations, one pose record per frame.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <vector>
+
+#include "board/board.h"
+#include "firmware/recording/writer.h"
+#include "firmware/runtime/capture.h"
+#include "firmware/runtime/fusion_stage.h"
+#include "fusion/body/body_calibration.h"
+#include "fusion/body/body_solver.h"
+
+namespace caphub::firmware {
+
+class BodyStage final : public PipelineStage {
+public:
+    struct Options {
+        double rateHz = 60;  // poses per second
+        // Calibrate in this pose: the subject holds it from the start; the orientations are
+        // averaged over [settle, settle + average] after the first sample. None: the board's
+        // nominal mountings, the subject facing north.
+        std::optional<body::ReferencePoseKind> calibrate;
+        Duration settle = std::chrono::milliseconds(2500);
+        Duration average = std::chrono::milliseconds(1000);
+    };
+
+    // fusion must be added to the capture before this stage (it reads its latest orientations);
+    // writer may be null.
+    BodyStage(const board::Board& board, const FusionStage& fusion, RecordingWriter* writer,
+              Clock& clock, const Options& options);
+
+    void onSample(const SensorSample& s) override;
+    void onEvent(const RuntimeEvent& e) override;
+
+    bool calibrated() const { return calibrated_; }
+    const body::BodyCalibration& calibration() const { return calibration_; }
+    // Why a requested calibration failed (empty when it did not).
+    const std::string& calibrationError() const { return calibrationError_; }
+    std::uint64_t poses() const { return poses_; }
+    const body::Pose& pose() const { return solver_.pose(); }
+    // Per pose, the time from the newest sample's data-ready edge to the pose being written, on
+    // the capture clock as the pipeline saw it: percentiles over the run (0..1).
+    Duration latencyPercentile(double p) const;
+
+private:
+    void calibrate(Timestamp t);
+    void solveFrame(Timestamp t, Timestamp newestSample);
+
+    const board::Board& board_;
+    const FusionStage& fusion_;
+    RecordingWriter* writer_;
+    Clock& clock_;
+    Options options_;
+    Duration period_;
+    body::BodySolver solver_;
+    body::SegmentMask mask_ = 0;
+    std::array<Quatd, body::kSegmentCount> nominal_;
+    std::vector<int> sensorOfSegment_;  // segment -> board sensor, -1 when none
+    body::BodyCalibration calibration_;
+    bool calibrated_ = false;
+    std::string calibrationError_;
+    std::optional<Timestamp> first_;
+    Timestamp nextFrame_{};
+    Timestamp lastFrame_{};
+    // The calibration average: per sensor the sum of sign-aligned quaternions.
+    std::vector<Eigen::Vector4d> sum_;
+    std::vector<int> count_;
+    std::uint64_t poses_ = 0;
+    std::vector<std::int64_t> latencyNs_;
+    std::array<Eigen::Quaternionf, body::kSegmentCount> joints_{};
+};
+
+}  // namespace caphub::firmware
