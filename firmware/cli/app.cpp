@@ -22,7 +22,6 @@ struct Planned {
 
 constexpr Planned kPlanned[] = {
     {"selftest", "Probe every sensor of a board and check its configuration"},
-    {"export", "Export a recording to BVH, glTF (.glb), CSV or OpenSim .sto"},
     {"replay", "Play a recording back through the body solver and the preview"},
 };
 
@@ -54,6 +53,7 @@ int runCli(int argc, char** argv) {
     addFusionCommand(app, exitCode);
     addSimCommand(app, exitCode);
     addCalibrateCommand(app, exitCode);
+    addExportCommand(app, exitCode);
     for (const auto& p : kPlanned) {
         CLI::App* sub = app.add_subcommand(p.name, p.description);
         sub->allow_extras();

@@ -11,5 +11,6 @@ void addRunCommand(CLI::App& app, int& exitCode);
 void addFusionCommand(CLI::App& app, int& exitCode);
 void addSimCommand(CLI::App& app, int& exitCode);
 void addCalibrateCommand(CLI::App& app, int& exitCode);
+void addExportCommand(CLI::App& app, int& exitCode);
 
 }  // namespace caphub::firmware

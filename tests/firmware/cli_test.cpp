@@ -9,35 +9,15 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include "tests/firmware/cli_run.h"
+
 namespace {
 
 using ::testing::HasSubstr;
 
-struct CliRun {
-    int exitCode = -1;
-    std::string output;  // stdout and stderr
-};
-
-// A shell command line (for reading back what caphub wrote with the tools a user has, too).
-CliRun shell(const std::string& pipeline) {
-    CliRun r;
-    FILE* p = popen((pipeline + " 2>&1").c_str(), "r");
-    if (p == nullptr) {
-        return r;
-    }
-    std::array<char, 4096> buf{};
-    std::size_t n = 0;
-    while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) {
-        r.output.append(buf.data(), n);
-    }
-    const int status = pclose(p);
-    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-CliRun caphub(const std::string& args) {
-    return shell(std::string(CAPHUB_BINARY) + " " + args);
-}
+using caphub::testing::caphub;
+using caphub::testing::CliRun;
+using caphub::testing::shell;
 
 std::string writeTemp(const std::string& name, const std::string& text) {
     const std::string path = ::testing::TempDir() + name;

@@ -1,0 +1,145 @@
+// caphub export: a recording's poses to BVH, binary glTF, CSV or OpenSim .sto
+// (firmware/export, docs/exports.md), with progress on a terminal and a one-line summary.
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include "firmware/cli/app.h"
+#include "firmware/cli/commands.h"
+#include "firmware/export/export.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+struct ExportArgs {
+    std::string recording;
+    std::string output;
+    std::string format;
+    std::string names = "hanim";
+    std::string units = "m";
+    std::optional<double> rateHz;
+    std::optional<double> fromS;
+    std::optional<double> toS;
+    bool referenceFrame = false;
+};
+
+std::string sizeText(std::uint64_t bytes) {
+    if (bytes >= (1u << 20)) {
+        return fmt::format("{:.1f} MiB", static_cast<double>(bytes) / (1 << 20));
+    }
+    if (bytes >= (1u << 10)) {
+        return fmt::format("{:.1f} KiB", static_cast<double>(bytes) / (1 << 10));
+    }
+    return fmt::format("{} bytes", bytes);
+}
+
+// "reading  42%" rewritten in place on a terminal, only when the percentage changes.
+class TerminalProgress {
+public:
+    TerminalProgress() : enabled_(isatty(STDERR_FILENO) == 1) {}
+    ~TerminalProgress() { done(); }
+
+    void operator()(std::string_view stage, double fraction) {
+        if (!enabled_) {
+            return;
+        }
+        const int percent = static_cast<int>(std::floor(fraction * 100));
+        if (percent == percent_ && stage == stage_) {
+            return;
+        }
+        percent_ = percent;
+        stage_ = stage;
+        fmt::print(stderr, "\rcaphub export: {:<8} {:3d}%", stage, percent);
+        std::fflush(stderr);
+        shown_ = true;
+    }
+
+    void done() {
+        if (shown_) {
+            fmt::print(stderr, "\r{:40}\r", "");
+            shown_ = false;
+        }
+    }
+
+private:
+    bool enabled_;
+    bool shown_ = false;
+    int percent_ = -1;
+    std::string stage_;
+};
+
+int runExport(const ExportArgs& a) {
+    using namespace exporter;
+    ExportOptions o;
+    o.format = *parseFormat(a.format);  // CLI11 checked it
+    o.names = a.names;
+    o.unitsPerM = a.units == "cm" ? 100 : 1;
+    o.referenceFrame = a.referenceFrame;
+    o.track.rateHz = a.rateHz;
+    o.track.fromS = a.fromS;
+    o.track.toS = a.toS;
+    if (a.referenceFrame && o.format != Format::Bvh) {
+        fmt::print(stderr, "caphub export: --reference-frame is for bvh only\n");
+        return kExitUsage;
+    }
+
+    TerminalProgress progress;
+    auto summary = exportRecording(a.recording, a.output, o,
+                                   [&](std::string_view stage, double f) { progress(stage, f); });
+    progress.done();
+    if (!summary) {
+        fmt::print(stderr, "caphub export: {}\n", summary.error().message);
+        return summary.error().code == EINVAL ? kExitUsage : kExitRuntime;
+    }
+    const ExportSummary& s = *summary;
+    if (s.damagedBytes > 0 || s.malformedPoses > 0 || s.outOfOrderPoses > 0) {
+        fmt::print(stderr,
+                   "caphub export: the recording is damaged: skipped {} bytes in {} damaged "
+                   "range(s), {} malformed and {} out-of-order pose record(s); exported the {} "
+                   "good pose records (gaps interpolated)\n",
+                   s.damagedBytes, s.damageRanges, s.malformedPoses, s.outOfOrderPoses,
+                   s.poseRecords);
+    }
+    if (s.subjectSource.rfind("default", 0) == 0 && o.format != Format::Glb &&
+        o.format != Format::Sto) {
+        fmt::print(stderr, "caphub export: segment lengths: {}\n", s.subjectSource);
+    }
+    fmt::print("{}: {} frames, {:.3f} s at {:g} Hz, {} ({})\n", a.output, s.frames, s.durationS,
+               s.rateHz, sizeText(s.fileBytes), formatName(o.format));
+    return kExitOk;
+}
+
+}  // namespace
+
+void addExportCommand(CLI::App& app, int& exitCode) {
+    auto a = std::make_shared<ExportArgs>();
+    CLI::App* cmd =
+        app.add_subcommand("export", "Export a recording to BVH, glTF (.glb), CSV or OpenSim .sto");
+    cmd->add_option("REC", a->recording, "A .cap recording with pose records")->required();
+    cmd->add_option("--format", a->format, "Output format")
+        ->required()
+        ->check(CLI::IsMember({"bvh", "glb", "csv", "sto"}));
+    cmd->add_option("-o,--output", a->output, "The file to write")->required();
+    cmd->add_option("--rate", a->rateHz, "Frames per second (default: the recording's pose rate)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--names", a->names,
+                    "Joint names: hanim, cmu, unity, or a TOML map file (segment = \"name\")")
+        ->capture_default_str();
+    cmd->add_option("--units", a->units, "Length unit of bvh and csv")
+        ->check(CLI::IsMember({"m", "cm"}))
+        ->capture_default_str();
+    cmd->add_option("--from", a->fromS, "Start, seconds from the first pose")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--to", a->toS, "End, seconds from the first pose")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_flag("--reference-frame", a->referenceFrame,
+                  "bvh: prepend the reference pose (T-pose) as the first frame");
+    cmd->callback([&exitCode, a] { exitCode = runExport(*a); });
+}
+
+}  // namespace caphub::firmware

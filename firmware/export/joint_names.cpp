@@ -1,0 +1,148 @@
+#include "firmware/export/joint_names.h"
+
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "fusion/body/skeleton.h"
+
+namespace caphub::firmware::exporter {
+
+namespace {
+
+using S = board::Segment;
+
+// Side-independent part of the CMU (MotionBuilder export) and Unity humanoid names, in
+// segment order; the limb names get "Left"/"Right" prefixed.
+constexpr std::array<const char*, board::kSegmentCount> kCmu = {
+    "Hips",      "LowerBack",   "Spine",       "Neck",          "Head",        "LeftShoulder",
+    "LeftArm",   "LeftForeArm", "LeftHand",    "RightShoulder", "RightArm",    "RightForeArm",
+    "RightHand", "LeftUpLeg",   "LeftLeg",     "LeftFoot",      "LeftToeBase", "RightUpLeg",
+    "RightLeg",  "RightFoot",   "RightToeBase"};
+constexpr std::array<const char*, board::kSegmentCount> kUnity = {
+    "Hips",          "Spine",         "Chest",         "Neck",          "Head",
+    "LeftShoulder",  "LeftUpperArm",  "LeftLowerArm",  "LeftHand",      "RightShoulder",
+    "RightUpperArm", "RightLowerArm", "RightHand",     "LeftUpperLeg",  "LeftLowerLeg",
+    "LeftFoot",      "LeftToes",      "RightUpperLeg", "RightLowerLeg", "RightFoot",
+    "RightToes"};
+
+JointNames hanim() {
+    JointNames n;
+    n.setName = "hanim";
+    for (int s = 0; s < board::kSegmentCount; ++s) {
+        const auto i = static_cast<std::size_t>(s);
+        n.joint[i] = std::string(body::joints()[i].name);
+        n.segment[i] = std::string(board::kSegments[i].name);
+    }
+    return n;
+}
+
+JointNames fromTable(const char* setName, const std::array<const char*, board::kSegmentCount>& t) {
+    JointNames n;
+    n.setName = setName;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        n.joint[i] = t[i];
+        n.segment[i] = t[i];
+    }
+    return n;
+}
+
+// Why a name cannot be used, or empty when it can.
+std::string nameProblem(std::string_view name) {
+    if (name.empty()) {
+        return "an empty name";
+    }
+    for (char c : name) {
+        const auto u = static_cast<unsigned char>(c);
+        if (u <= 0x20 || u == 0x7f || c == '{' || c == '}' || c == '"' || c == '#' || c == ',') {
+            return fmt::format(
+                "the name \"{}\" has a space, a control character or one of {{}}\"#,", name);
+        }
+    }
+    return {};
+}
+
+}  // namespace
+
+Result<JointNames> parseJointNames(std::string_view text, const std::string& sourceName) {
+    toml::table root;
+    try {
+        root = toml::parse(text, sourceName);
+    } catch (const toml::parse_error& e) {
+        return Error{EINVAL,
+                     fmt::format("{}:{}: {}", sourceName, e.source().begin.line, e.description())};
+    }
+    JointNames names = hanim();
+    names.setName = sourceName;
+    std::map<std::string, std::pair<std::string, int>> used;  // name -> (segment, line)
+    std::array<int, board::kSegmentCount> lineOf{};
+    for (const auto& [key, node] : root) {
+        const int line = static_cast<int>(node.source().begin.line);
+        const auto segment = board::findSegment(key.str());
+        if (!segment) {
+            return Error{EINVAL, fmt::format("{}:{}: '{}' is not a segment: expected one of "
+                                             "pelvis, l5, t12, ... (board/segment.h)",
+                                             sourceName, line, key.str())};
+        }
+        const auto* value = node.as_string();
+        if (value == nullptr) {
+            return Error{EINVAL, fmt::format("{}:{}: {}: expected a quoted name", sourceName, line,
+                                             key.str())};
+        }
+        const std::string name = value->get();
+        if (auto problem = nameProblem(name); !problem.empty()) {
+            return Error{EINVAL, fmt::format("{}:{}: {}: {}: expected a name without them",
+                                             sourceName, line, key.str(), problem)};
+        }
+        const auto i = static_cast<std::size_t>(*segment);
+        names.joint[i] = name;
+        names.segment[i] = name;
+        lineOf[i] = line;
+    }
+    // Unique among the joint names and among the segment names (H-Anim defaults included).
+    for (const auto* list : {&names.joint, &names.segment}) {
+        used.clear();
+        for (int s = 0; s < board::kSegmentCount; ++s) {
+            const auto i = static_cast<std::size_t>(s);
+            const std::string& name = (*list)[i];
+            auto [it, fresh] =
+                used.emplace(name, std::pair{std::string(board::kSegments[i].name), lineOf[i]});
+            if (!fresh) {
+                const int line = lineOf[i] != 0 ? lineOf[i] : it->second.second;
+                return Error{EINVAL,
+                             fmt::format("{}:{}: the name \"{}\" is given to both {} and {}: "
+                                         "expected unique names",
+                                         sourceName, line, name, it->second.first,
+                                         board::kSegments[i].name)};
+            }
+        }
+    }
+    return names;
+}
+
+Result<JointNames> jointNamesFor(std::string_view spec) {
+    if (spec == "hanim") {
+        return hanim();
+    }
+    if (spec == "cmu") {
+        return fromTable("cmu", kCmu);
+    }
+    if (spec == "unity") {
+        return fromTable("unity", kUnity);
+    }
+    const std::string path(spec);
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        return Error{ENOENT, fmt::format("--names '{}': expected hanim, cmu, unity or a readable "
+                                         "map file",
+                                         path)};
+    }
+    std::ostringstream text;
+    text << in.rdbuf();
+    return parseJointNames(text.str(), path);
+}
+
+}  // namespace caphub::firmware::exporter

@@ -1,0 +1,208 @@
+#include "firmware/export/pose_track.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "board/loader.h"
+
+namespace caphub::firmware::exporter {
+
+namespace {
+
+// A pose record as stored: single precision, like the file.
+struct RawPose {
+    std::int64_t tNs = 0;
+    Eigen::Vector3f rootM;
+    std::array<Eigen::Quaternionf, body::kSegmentCount> q;
+};
+
+bool finite(const Eigen::Vector3f& v) {
+    return v.allFinite();
+}
+
+// Highest export rate accepted: far above any IMU pose rate, low enough to keep a typo such as
+// --rate 1e9 from filling the disk.
+constexpr double kMaxRateHz = 10000;
+
+}  // namespace
+
+body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source) {
+    body::Dimensions fallback = *body::dimensionsFromSubject(board::SubjectConfig{});
+    std::string boardText;
+    try {
+        const toml::table meta =
+            toml::parse(std::string_view(metadataToml), std::string_view("recording metadata"));
+        if (const auto text = meta["board"]["text"].value<std::string>()) {
+            boardText = *text;
+        }
+    } catch (const toml::parse_error& e) {
+        source = fmt::format("default subject (1.75 m): the recording's metadata is not TOML ({})",
+                             e.description());
+        return fallback;
+    }
+    if (boardText.empty()) {
+        source = "default subject (1.75 m): the recording carries no board file";
+        return fallback;
+    }
+    const board::LoadResult loaded = board::loadBoardText(boardText, "recording's board file");
+    if (!loaded.ok()) {
+        source =
+            fmt::format("default subject (1.75 m): the recording's board file does not load ({})",
+                        loaded.errors.empty() ? "?" : loaded.errors.front().str());
+        return fallback;
+    }
+    auto dims = body::dimensionsFromSubject(loaded.board->subject);
+    if (!dims) {
+        source = fmt::format("default subject (1.75 m): {}", dims.error().message);
+        return fallback;
+    }
+    source = fmt::format("subject of board '{}' ({} m)", loaded.board->name,
+                         loaded.board->subject.heightM);
+    return *dims;
+}
+
+PoseFrame interpolate(const PoseFrame& a, const PoseFrame& b, double alpha) {
+    PoseFrame out;
+    out.tS = a.tS + alpha * (b.tS - a.tS);
+    out.rootM = a.rootM + alpha * (b.rootM - a.rootM);
+    for (std::size_t j = 0; j < out.qLocal.size(); ++j) {
+        out.qLocal[j] = a.qLocal[j].slerp(alpha, b.qLocal[j]).normalized();  // shorter arc
+    }
+    return out;
+}
+
+namespace {
+
+PoseFrame toFrame(const RawPose& p, std::int64_t t0Ns) {
+    PoseFrame f;
+    f.tS = static_cast<double>(p.tNs - t0Ns) * 1e-9;
+    f.rootM = p.rootM.cast<double>();
+    for (std::size_t j = 0; j < p.q.size(); ++j) {
+        f.qLocal[j] = normalizedOrIdentity(p.q[j].cast<double>());
+    }
+    return f;
+}
+
+}  // namespace
+
+Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& options,
+                                std::uint64_t fileBytes, const ProgressFn& progress) {
+    if (options.rateHz && !(*options.rateHz > 0 && *options.rateHz <= kMaxRateHz)) {
+        return Error{EINVAL, fmt::format("--rate {}: expected a rate above 0 and at most {} Hz",
+                                         *options.rateHz, kMaxRateHz)};
+    }
+    if (options.fromS && !(*options.fromS >= 0 && std::isfinite(*options.fromS))) {
+        return Error{EINVAL, fmt::format("--from {}: expected seconds >= 0", *options.fromS)};
+    }
+    if (options.toS &&
+        !(std::isfinite(*options.toS) && *options.toS >= options.fromS.value_or(0))) {
+        return Error{EINVAL, fmt::format("--to {}: expected seconds >= --from ({})", *options.toS,
+                                         options.fromS.value_or(0))};
+    }
+
+    PoseTrack track;
+    track.dimensions = dimensionsFromMetadata(reader.metadata(), track.subjectSource);
+
+    std::vector<RawPose> raw;
+    RecordView v;
+    Eigen::Vector3f rootM;
+    std::vector<Eigen::Quaternionf> joints;
+    int rc = 0;
+    std::uint64_t sinceProgress = 0;
+    while ((rc = reader.next(v)) == 1) {
+        if (progress && fileBytes > 0 && ++sinceProgress == 4096) {
+            sinceProgress = 0;
+            progress(std::min(1.0, static_cast<double>(v.offset) / static_cast<double>(fileBytes)));
+        }
+        if (v.type != cap::RecordType::Pose) {
+            continue;
+        }
+        if (!decodePose(v, rootM, joints) || joints.size() != body::kSegmentCount ||
+            !finite(rootM) ||
+            !std::all_of(joints.begin(), joints.end(),
+                         [](const Eigen::Quaternionf& q) { return q.coeffs().allFinite(); })) {
+            ++track.malformedPoses;
+            continue;
+        }
+        const std::int64_t tNs = toNs(v.t);
+        if (!raw.empty() && tNs <= raw.back().tNs) {
+            ++track.outOfOrderPoses;
+            continue;
+        }
+        RawPose& p = raw.emplace_back();
+        p.tNs = tNs;
+        p.rootM = rootM;
+        std::copy(joints.begin(), joints.end(), p.q.begin());
+    }
+    if (rc < 0) {
+        return errnoError(rc, "reading the recording");
+    }
+    for (const auto& d : reader.damage()) {
+        track.damagedBytes += d.bytes;
+        ++track.damageRanges;
+    }
+    track.tornTailBytes = reader.tornTailBytes();
+    track.poseRecords = raw.size();
+    if (raw.empty()) {
+        return Error{ENODATA,
+                     track.malformedPoses > 0
+                         ? fmt::format("no usable pose records ({} malformed: not {} joints or "
+                                       "not finite)",
+                                       track.malformedPoses, body::kSegmentCount)
+                         : std::string("no pose records: was the body stage on?")};
+    }
+
+    const std::int64_t t0 = raw.front().tNs;
+    track.recordingDurationS = static_cast<double>(raw.back().tNs - t0) * 1e-9;
+    if (raw.size() >= 2) {
+        // The median interval: robust to the gaps that dropped or damaged records leave.
+        std::vector<std::int64_t> dt(raw.size() - 1);
+        for (std::size_t i = 1; i < raw.size(); ++i) {
+            dt[i - 1] = raw[i].tNs - raw[i - 1].tNs;
+        }
+        std::nth_element(dt.begin(), dt.begin() + static_cast<std::ptrdiff_t>(dt.size() / 2),
+                         dt.end());
+        track.recordedRateHz = 1e9 / static_cast<double>(dt[dt.size() / 2]);
+    }
+    // One pose has no rate of its own: it becomes one frame at 100 Hz unless told otherwise.
+    track.rateHz = options.rateHz.value_or(track.recordedRateHz > 0 ? track.recordedRateHz : 100);
+
+    const double fromS = options.fromS.value_or(0);
+    const double toS =
+        std::min(options.toS.value_or(track.recordingDurationS), track.recordingDurationS);
+    if (fromS > track.recordingDurationS) {
+        return Error{EINVAL, fmt::format("--from {} s: the poses end at {:.3f} s", fromS,
+                                         track.recordingDurationS)};
+    }
+    const std::int64_t startNs = t0 + std::llround(fromS * 1e9);
+    const std::int64_t endNs = t0 + std::llround(toS * 1e9);
+    const double periodNs = 1e9 / track.rateHz;
+    std::size_t i = 0;  // raw[i].tNs <= t < raw[i + 1].tNs
+    for (std::int64_t k = 0;; ++k) {
+        const std::int64_t t = startNs + std::llround(static_cast<double>(k) * periodNs);
+        if (t > endNs) {
+            break;
+        }
+        while (i + 1 < raw.size() && raw[i + 1].tNs <= t) {
+            ++i;
+        }
+        if (raw[i].tNs == t || i + 1 == raw.size()) {
+            track.frames.push_back(toFrame(raw[i], t0));
+        } else {
+            const double alpha = static_cast<double>(t - raw[i].tNs) /
+                                 static_cast<double>(raw[i + 1].tNs - raw[i].tNs);
+            track.frames.push_back(
+                interpolate(toFrame(raw[i], t0), toFrame(raw[i + 1], t0), alpha));
+        }
+        track.frames.back().tS = static_cast<double>(t - t0) * 1e-9;
+    }
+    if (progress) {
+        progress(1.0);
+    }
+    return track;
+}
+
+}  // namespace caphub::firmware::exporter

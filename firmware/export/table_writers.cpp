@@ -1,0 +1,114 @@
+// CSV and OpenSim .sto export (docs/exports.md).
+#include <string>
+
+#include <fmt/format.h>
+
+#include "firmware/export/output_file.h"
+#include "firmware/export/writers.h"
+#include "fusion/body/kinematics.h"
+
+namespace caphub::firmware::exporter {
+
+WorldPose worldPose(const PoseTrack& track, const PoseFrame& frame) {
+    body::Pose pose;
+    pose.qLocal = frame.qLocal;
+    body::worldFromLocal(pose);
+    body::forwardKinematics(track.dimensions, frame.rootM, pose);
+    return {pose.qWorld, pose.positionM};
+}
+
+namespace {
+
+// Keeps each segment's quaternion on the side of the previous frame's (q and -q are the same
+// rotation), so that a column does not jump sign from one row to the next.
+struct Continuity {
+    std::array<Quatd, body::kSegmentCount> previous;
+    bool first = true;
+
+    void apply(WorldPose& p) {
+        for (std::size_t s = 0; s < p.q.size(); ++s) {
+            if (first) {
+                p.q[s] = canonical(p.q[s]);
+            } else if (p.q[s].coeffs().dot(previous[s].coeffs()) < 0) {
+                p.q[s].coeffs() *= -1;
+            }
+            previous[s] = p.q[s];
+        }
+        first = false;
+    }
+};
+
+template <typename Row>
+Result<void> writeRows(const PoseTrack& track, const std::string& header, const std::string& path,
+                       const ProgressFn& progress, Row row) {
+    auto file = OutputFile::open(path);
+    if (!file) {
+        return file.error();
+    }
+    std::string out = header;
+    Continuity continuity;
+    for (std::size_t f = 0; f < track.frames.size(); ++f) {
+        WorldPose p = worldPose(track, track.frames[f]);
+        continuity.apply(p);
+        row(out, track.frames[f].tS, p);
+        if (out.size() > (1u << 20)) {
+            file->write(out);
+            out.clear();
+            if (progress) {
+                progress(static_cast<double>(f + 1) / static_cast<double>(track.frames.size()));
+            }
+        }
+    }
+    file->write(out);
+    if (progress) {
+        progress(1.0);
+    }
+    return file->close();
+}
+
+}  // namespace
+
+Result<void> writeCsv(const PoseTrack& track, const JointNames& names, double unitsPerM,
+                      const std::string& path, const ProgressFn& progress) {
+    std::string header = "t";
+    for (const auto& n : names.segment) {
+        for (const char* c : {"qw", "qx", "qy", "qz", "px", "py", "pz"}) {
+            header += fmt::format(",{}_{}", n, c);
+        }
+    }
+    header += '\n';
+    return writeRows(track, header, path, progress,
+                     [unitsPerM](std::string& out, double tS, const WorldPose& p) {
+                         auto it = std::back_inserter(out);
+                         fmt::format_to(it, "{:.6f}", tS);
+                         for (std::size_t s = 0; s < p.q.size(); ++s) {
+                             const Quatd& q = p.q[s];
+                             const Vec3d x = p.positionM[s] * unitsPerM;
+                             fmt::format_to(it, ",{:.7f},{:.7f},{:.7f},{:.7f},{:.6f},{:.6f},{:.6f}",
+                                            q.w(), q.x(), q.y(), q.z(), x.x(), x.y(), x.z());
+                         }
+                         out += '\n';
+                     });
+}
+
+Result<void> writeSto(const PoseTrack& track, const JointNames& names, const std::string& path,
+                      const ProgressFn& progress) {
+    std::string header = fmt::format(
+        "DataRate={:.6f}\nDataType=Quaternion\nversion=3\nOpenSimVersion=4.1\nendheader\ntime",
+        track.rateHz);
+    for (const auto& n : names.segment) {
+        header += fmt::format("\t{}_imu", n);
+    }
+    header += '\n';
+    return writeRows(
+        track, header, path, progress, [](std::string& out, double tS, const WorldPose& p) {
+            auto it = std::back_inserter(out);
+            fmt::format_to(it, "{:.6f}", tS);
+            for (const Quatd& q : p.q) {
+                fmt::format_to(it, "\t{:.7f},{:.7f},{:.7f},{:.7f}", q.w(), q.x(), q.y(), q.z());
+            }
+            out += '\n';
+        });
+}
+
+}  // namespace caphub::firmware::exporter

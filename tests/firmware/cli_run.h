@@ -1,0 +1,40 @@
+// Running the caphub program (and other commands) from tests, as a person would at a shell.
+#pragma once
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace caphub::testing {
+
+struct CliRun {
+    int exitCode = -1;
+    std::string output;  // stdout and stderr
+};
+
+// A shell command line, its output and exit code.
+inline CliRun shell(const std::string& command) {
+    CliRun r;
+    FILE* p = popen((command + " 2>&1").c_str(), "r");
+    if (p == nullptr) {
+        return r;
+    }
+    std::array<char, 4096> buf{};
+    std::size_t n = 0;
+    while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) {
+        r.output.append(buf.data(), n);
+    }
+    const int status = pclose(p);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+// The caphub program under test (CAPHUB_BINARY: its path, through the emulator when
+// cross-compiled) with these arguments.
+inline CliRun caphub(const std::string& args) {
+    return shell(std::string(CAPHUB_BINARY) + " " + args);
+}
+
+}  // namespace caphub::testing
