@@ -86,13 +86,15 @@ void BodyStage::onSample(const SensorSample& s) {
     if (!calibrated_) {
         return;
     }
-    if (t >= nextFrame_) {
-        solveFrame(t, t);
-        // The next frame on the grid; after a gap, the first grid point after t.
+    // Poses on a fixed grid of the output rate: every grid point the newest sample has passed
+    // gets its pose (samples of several buses arrive interleaved, so the newest time can jump by
+    // more than a period). After a long gap (every sensor silent) the grid restarts at t.
+    if (t - nextFrame_ > period_ * 10) {
+        nextFrame_ = t;
+    }
+    while (t >= nextFrame_) {
+        solveFrame(nextFrame_, t);
         nextFrame_ += period_;
-        if (nextFrame_ <= t) {
-            nextFrame_ = t + period_;
-        }
     }
 }
 
