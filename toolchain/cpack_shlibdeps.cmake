@@ -1,8 +1,11 @@
 # Run by cpack for a cross build (CPACK_PROJECT_CONFIG_FILE): the package's Depends from the
-# shared libraries the program needs, as dpkg-shlibdeps would find them with shlibs files.
-# Each DT_NEEDED soname (libfmt.so.9) is looked up in the shlibs files of the sysroot's packages
-# (kept by make-sysroot.sh in var/lib/caphub-sysroot/info), whose lines read
-# "libfmt 9 libfmt9 (>= 9.1.0+ds1)"; the dependency is the rest of the matching line.
+# shared libraries the program needs, as dpkg-shlibdeps finds them. The sysroot's packages are
+# not in the host's dpkg database, so their control files (kept by make-sysroot.sh in
+# var/lib/caphub-sysroot/info) are read directly:
+# - a symbols file with a section "libstdc++.so.6 libstdc++6 #MINVER#" lists each symbol with
+#   the version that introduced it (" _ZNSo3putEc@GLIBCXX_3.4 4.1.1"); the dependency is that
+#   package at the highest version among the symbols the program imports from it;
+# - otherwise the shlibs line "libfmt 9 libfmt9 (>= 9.1.0+ds1)" gives it (the rest of the line).
 if(NOT CPACK_GENERATOR STREQUAL "DEB")
     return()
 endif()
@@ -14,6 +17,88 @@ if(NOT rc EQUAL 0)
 endif()
 string(REGEX MATCHALL "NEEDED +[^\n]+" needed_lines "${dump}")
 
+# The imported symbols as symbols files name them: name@VERSION, or name@Base when unversioned.
+# objdump -T lines: "00000000      DF *UND*  00000000 (GLIBCXX_3.4) _ZNSo3putEc".
+execute_process(COMMAND "${CPACK_CAPHUB_OBJDUMP}" -T "${CPACK_CAPHUB_PROGRAM}"
+                OUTPUT_VARIABLE tdump RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "cpack_shlibdeps: cannot read the symbols of ${CPACK_CAPHUB_PROGRAM}")
+endif()
+string(REGEX MATCHALL "\\*UND\\*[^\n]+" und_lines "${tdump}")
+set(imported "")
+foreach(l IN LISTS und_lines)
+    if(l MATCHES "\\*UND\\*[ \t]+[0-9a-fA-F]+[ \t]+\\(?([^ \t()]+)\\)?[ \t]+([^ \t]+)$")
+        list(APPEND imported "${CMAKE_MATCH_2}@${CMAKE_MATCH_1}")
+    endif()
+endforeach()
+
+# The highest of a list of Debian versions (dpkg --compare-versions, the host's dpkg).
+function(caphub_max_version out)
+    set(best "")
+    foreach(v IN LISTS ARGN)
+        if(best STREQUAL "")
+            set(best "${v}")
+        else()
+            execute_process(COMMAND dpkg --compare-versions "${v}" gt "${best}" RESULT_VARIABLE gt)
+            if(gt EQUAL 0)
+                set(best "${v}")
+            endif()
+        endif()
+    endforeach()
+    set(${out} "${best}" PARENT_SCOPE)
+endfunction()
+
+# The package of a soname and the highest version among the symbols the program imports from
+# it ("" when it imports none of the listed ones), from the symbols files; "" when none has a
+# section for the soname.
+file(GLOB symbols_files "${CPACK_CAPHUB_SYSROOT}/var/lib/caphub-sysroot/info/*.symbols")
+function(caphub_symbols_dep soname out_pkg out_ver)
+    set(${out_pkg} "" PARENT_SCOPE)
+    set(${out_ver} "" PARENT_SCOPE)
+    foreach(f IN LISTS symbols_files)
+        file(READ "${f}" text)
+        string(PREPEND text "\n")
+        string(FIND "${text}" "\n${soname} " start)
+        if(start EQUAL -1)
+            continue()
+        endif()
+        # The section: from its header line to the next header line (one not starting with a
+        # space, '|' or '*').
+        math(EXPR start "${start} + 1")
+        string(SUBSTRING "${text}" ${start} -1 section)
+        string(REGEX MATCH "^([^ \n]+) ([^ \n]+) #MINVER#" header "${section}")
+        if(header STREQUAL "")
+            continue()
+        endif()
+        set(pkg "${CMAKE_MATCH_2}")
+        string(LENGTH "${header}" hlen)
+        string(SUBSTRING "${section}" ${hlen} -1 section)
+        string(REGEX MATCH "\n[^ |*\n][^\n]*#MINVER#" next "${section}")
+        if(NOT next STREQUAL "")
+            string(FIND "${section}" "${next}" end)
+            string(SUBSTRING "${section}" 0 ${end} section)
+        endif()
+        set(versions "")
+        foreach(sym IN LISTS imported)
+            string(FIND "${section}" "\n ${sym} " at)
+            if(at EQUAL -1)
+                continue()
+            endif()
+            string(LENGTH "\n ${sym} " klen)
+            math(EXPR at "${at} + ${klen}")
+            string(SUBSTRING "${section}" ${at} 80 rest)
+            if(rest MATCHES "^([^ \n]+)")
+                list(APPEND versions "${CMAKE_MATCH_1}")
+            endif()
+        endforeach()
+        list(REMOVE_DUPLICATES versions)
+        caphub_max_version(minver ${versions})
+        set(${out_pkg} "${pkg}" PARENT_SCOPE)
+        set(${out_ver} "${minver}" PARENT_SCOPE)
+        return()
+    endforeach()
+endfunction()
+
 file(GLOB shlibs_files "${CPACK_CAPHUB_SYSROOT}/var/lib/caphub-sysroot/info/*.shlibs")
 set(shlibs_text "")
 foreach(f IN LISTS shlibs_files)
@@ -22,9 +107,17 @@ foreach(f IN LISTS shlibs_files)
 endforeach()
 
 set(deps "${CPACK_DEBIAN_PACKAGE_DEPENDS}")
+set(sym_pkgs "")
 foreach(line IN LISTS needed_lines)
     string(REGEX REPLACE "NEEDED +" "" soname "${line}")
     string(STRIP "${soname}" soname)
+    caphub_symbols_dep("${soname}" sym_pkg sym_ver)
+    if(NOT sym_pkg STREQUAL "")
+        # Merged per package below: libc.so.6 and libm.so.6 both give libc6.
+        list(APPEND sym_pkgs "${sym_pkg}")
+        list(APPEND "sym_versions_${sym_pkg}" ${sym_ver})
+        continue()
+    endif()
     # libNAME.so.VERSION, or libNAME-VERSION.so
     if(soname MATCHES "^(.+)\\.so\\.([0-9.]+)$")
         set(lib "${CMAKE_MATCH_1}")
@@ -45,14 +138,32 @@ foreach(line IN LISTS needed_lines)
         set(dep "${CMAKE_MATCH_2}")
     endif()
     string(STRIP "${dep}" dep)
+    # Several sonames of one package (libc.so.6, libm.so.6) give the same entry: list it once.
+    # A plain substring search: the entries hold regex characters ("(>= 9.1.0+ds1)").
+    string(FIND ", ${deps}, " ", ${dep}, " found)
     if(deps STREQUAL "")
         set(deps "${dep}")
-    elseif(NOT (", ${deps}, " MATCHES ", ${dep}, " OR deps STREQUAL dep))
-        string(FIND ", ${deps}, " ", ${dep}, " found)
-        if(found EQUAL -1)
-            string(APPEND deps ", ${dep}")
-        endif()
+    elseif(found EQUAL -1)
+        string(APPEND deps ", ${dep}")
     endif()
 endforeach()
+list(REMOVE_DUPLICATES sym_pkgs)
+foreach(pkg IN LISTS sym_pkgs)
+    caphub_max_version(minver ${sym_versions_${pkg}})
+    set(dep "${pkg}")
+    if(NOT minver STREQUAL "")
+        set(dep "${pkg} (>= ${minver})")
+    endif()
+    if(deps STREQUAL "")
+        set(deps "${dep}")
+    else()
+        string(APPEND deps ", ${dep}")
+    endif()
+endforeach()
+# Sorted by name, as dpkg-shlibdeps writes the field.
+string(REPLACE ", " ";" dep_list "${deps}")
+list(REMOVE_DUPLICATES dep_list)
+list(SORT dep_list)
+list(JOIN dep_list ", " deps)
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "${deps}")
 message(STATUS "cpack_shlibdeps: Depends: ${deps}")

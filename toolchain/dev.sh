@@ -4,13 +4,14 @@
 #   dev.sh test        bootstrap, build (debug), run every test with ctest
 #   dev.sh test asan   the same under AddressSanitizer + UndefinedBehaviorSanitizer
 #   dev.sh test aarch64   cross build for arm64, unit tests under qemu-aarch64 (armhf: qemu-arm)
+#   dev.sh package [host|aarch64|armhf]   the .deb for amd64 (release build), arm64 or armhf
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 
 usage() {
-    sed -n '2,6p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+    sed -n '2,7p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
     exit 2
 }
 
@@ -49,6 +50,35 @@ test)
     esac
     build "$preset"
     ctest --preset "$preset"
+    ;;
+package)
+    # The package of one architecture into out/packages. CAPHUB_BUILD_DIR picks another build
+    # folder than the preset's, CAPHUB_JOBS the parallel build jobs (default: the preset's 2).
+    case "${2:-host}" in
+    host) preset=release ;;
+    aarch64 | arm64) preset=aarch64 ;;
+    armhf) preset=armhf ;;
+    *) usage ;;
+    esac
+    bash toolchain/bootstrap.sh
+    case "$preset" in
+    aarch64) bash toolchain/make-sysroot.sh arm64 ;;
+    armhf) bash toolchain/make-sysroot.sh armhf ;;
+    esac
+    dir=${CAPHUB_BUILD_DIR:-build/$preset}
+    cmake --preset "$preset" -B "$dir" >/dev/null
+    # The package holds the program and data files: building `caphub` is enough.
+    cmake --build "$dir" --target caphub -j "${CAPHUB_JOBS:-2}"
+    out="$root/out/packages"
+    mkdir -p "$out"
+    cpack -G DEB --config "$dir/CPackConfig.cmake" -B "$out" >"$dir/cpack.log" 2>&1 || {
+        tail -20 "$dir/cpack.log" >&2
+        exit 1
+    }
+    rm -rf "$out/_CPack_Packages"  # cpack's staging folder
+    deb=$(grep -o "$out/caphub_[^ ]*\.deb" "$dir/cpack.log" | tail -n 1)
+    echo "package: $deb"
+    dpkg-deb -f "$deb" Package Version Architecture Depends
     ;;
 *)
     usage

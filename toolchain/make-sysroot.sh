@@ -28,7 +28,10 @@ cache=$root/build/sysroot-cache/$arch
 list=$root/toolchain/sysroot-packages.txt
 
 mapfile -t wanted < <(sed -e 's/#.*//' -e 's/[[:space:]]//g' "$list" | grep -v '^$')
-stamp_text="$(printf '%s\n' "${wanted[@]}")"
+# The stamp holds the package list and this script's checksum: a sysroot made by an older
+# version of the script (say, before a fix-up of the CMake package files below) is made again.
+stamp_text="$(printf '%s\n' "${wanted[@]}")
+script $(sha256sum "${BASH_SOURCE[0]}" | cut -d' ' -f1)"
 if [ -f "$sysroot/.caphub-sysroot" ] && [ "$(cat "$sysroot/.caphub-sysroot")" = "$stamp_text" ]; then
     echo "make-sysroot: $sysroot is up to date (${#wanted[@]} packages listed)"
     exit 0

@@ -44,8 +44,10 @@ set(CPACK_PACKAGING_INSTALL_PREFIX "/usr")
 set(CPACK_STRIP_FILES ON)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)
+# The extended description only: CPack puts CPACK_PACKAGE_DESCRIPTION_SUMMARY on the first line
+# and indents each line of this one by a space.
 set(CPACK_DEBIAN_PACKAGE_DESCRIPTION
-    "Standalone inertial motion-capture hub\n Reads 10-17 9-axis IMUs over I2C/SPI, fuses each into an orientation, drives a\n skeleton, records, previews and exports. Runs as the caphub service.")
+    "Reads 10-17 9-axis IMUs over I2C/SPI, fuses each into an orientation, drives a\nskeleton, records, previews and exports. Runs as the caphub service.")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     "${PROJECT_BINARY_DIR}/deb/conffiles" "${PROJECT_BINARY_DIR}/deb/postinst"
     "${PROJECT_BINARY_DIR}/deb/prerm" "${PROJECT_BINARY_DIR}/deb/postrm")

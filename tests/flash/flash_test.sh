@@ -34,6 +34,46 @@ deb=$(ls "$work"/pkg/caphub_*.deb)
 arch=$(dpkg-deb -f "$deb" Architecture)
 echo "package: $(basename "$deb")"
 
+# 1b. The package's program is for the package's architecture, and its Depends names the
+# package of every shared library the program links (found here with ldconfig and dpkg -S,
+# independently of dpkg-shlibdeps, which made the field).
+dpkg-deb --fsys-tarfile "$deb" | tar -xOf - ./usr/bin/caphub >caphub.bin
+case "$arch" in
+amd64) machine="x86-64" ;;
+arm64) machine="ARM aarch64" ;;
+armhf) machine="ARM, EABI5" ;;
+*) machine="unknown architecture $arch" ;;
+esac
+if file -b caphub.bin | grep -q "ELF .*$machine"; then
+    pass "the package's program is an ELF for $arch ($machine)"
+else
+    fail "package $arch holds: $(file -b caphub.bin)"
+fi
+depends=$(dpkg-deb -f "$deb" Depends)
+depNames=$(echo "$depends" | tr ',|' '\n\n' | sed -e 's/(.*)//' -e 's/:.*//' -e 's/[[:space:]]//g')
+for so in $(objdump -p caphub.bin | awk '$1 == "NEEDED" {print $2}'); do
+    # ldconfig -p: "libfmt.so.9 (libc6,x86-64) => /usr/lib/x86_64-linux-gnu/libfmt.so.9".
+    # (awk reads to the end: an early exit would end ldconfig with SIGPIPE, fatal under pipefail)
+    lib=$(ldconfig -p | awk -v s="$so" -v m="$machine" '!found && $1 == s && (m != "x86-64" || /x86-64/) {print $NF; found = 1}')
+    owner=""
+    for f in "$lib" "$(realpath -e "$lib" 2>/dev/null)" "${lib#/usr}" "/usr${lib#/usr}"; do
+        [ -n "$f" ] || continue
+        owner=$(dpkg -S "$f" 2>/dev/null | sed -n '1s/:.*//p') && [ -n "$owner" ] && break
+    done
+    # The package, or a virtual package it provides (libspdlog1.10 provides libspdlog1.10-fmt9,
+    # the name its shlibs file asks for).
+    names="$owner"
+    if [ -n "$owner" ]; then
+        names+=$'\n'$(dpkg-query -W -f='${Provides}' "$owner" 2>/dev/null | tr ',' '\n' |
+            sed -e 's/(.*)//' -e 's/:.*//' -e 's/[[:space:]]//g')
+    fi
+    if [ -n "$owner" ] && grep -qxF -f <(grep -v '^$' <<<"$names") <<<"$depNames"; then
+        pass "$so ($owner) is in Depends"
+    else
+        fail "$so: owner '${owner:-not found}' not in Depends: $depends"
+    fi
+done
+
 # 2. Stand-ins for the dependencies a base image lacks.
 base=(libc6 libstdc++6 libgcc-s1 adduser)
 mkdir -p deps
