@@ -1,6 +1,7 @@
 // caphub run: capture from a suit - the hub's real buses, or the virtual suit when the board's
 // buses are simulated - recording every sample and event, until Ctrl-C or a duration.
 #include <csignal>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -18,8 +19,12 @@
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
 #include "hal/core/log.h"
+#include "render/framebuffer.h"
+#include "render/mjpeg_server.h"
+#include "render/sinks.h"
 
 namespace caphub::firmware {
 
@@ -49,7 +54,57 @@ struct RunOptions {
     std::string calibration;
     std::string bodyCalibration = "none";  // tpose, npose, none
     double poseRateHz = 60;
+    std::vector<std::string> previews;  // png:DIR, fb:/dev/fbN, http:PORT
+    double previewFps = 10;
 };
+
+// The preview sinks of --preview (or, without it, the board's outputs). A sink that cannot be
+// opened is reported and the capture goes on without it.
+render::SinkSet previewSinks(const RunOptions& o, const board::Board& b) {
+    std::vector<std::string> specs = o.previews;
+    if (specs.empty()) {
+        if (!b.outputs.previewPng.empty()) {
+            specs.push_back("png:" + b.outputs.previewPng);
+        }
+        if (!b.outputs.mjpeg.empty()) {
+            specs.push_back("http:" + b.outputs.mjpeg);
+        }
+    }
+    render::SinkSet sinks;
+    for (const auto& spec : specs) {
+        const auto colon = spec.find(':');
+        const std::string kind = spec.substr(0, colon);
+        const std::string arg = colon == std::string::npos ? "" : spec.substr(colon + 1);
+        if (kind == "png" && !arg.empty()) {
+            sinks.add(render::makePngFolderSink(arg));
+        } else if (kind == "fb" && !arg.empty()) {
+            auto fb = render::FramebufferSink::openDevice(arg, 32);
+            if (fb) {
+                sinks.add(render::makeFramebufferSink(std::move(*fb)));
+            } else {
+                sinks.addFailure(spec, fb.error());
+            }
+        } else if (kind == "http" && !arg.empty()) {
+            render::MjpegOptions mo;
+            const auto hostColon = arg.rfind(':');
+            if (hostColon != std::string::npos) {
+                mo.host = arg.substr(0, hostColon);
+            }
+            mo.port = std::atoi(arg.c_str() + (hostColon == std::string::npos ? 0 : hostColon + 1));
+            auto server = render::MjpegServer::start(mo);
+            if (server) {
+                fmt::print("preview: http://{}:{}/\n", mo.host, (*server)->port());
+                sinks.add(render::makeMjpegSink(std::move(*server)));
+            } else {
+                sinks.addFailure(spec, server.error());
+            }
+        } else {
+            sinks.addFailure(spec,
+                             Error{EINVAL, "expected png:DIR, fb:/dev/fbN or http:[HOST:]PORT"});
+        }
+    }
+    return sinks;
+}
 
 std::string timestampName() {
     const std::time_t now = std::time(nullptr);
@@ -218,6 +273,24 @@ int run(const RunOptions& o) {
     BodyStage bodyStage(b, fusionStage, recorder ? &recorder->writer() : nullptr, *clock,
                         bodyOptions);
     capture.addStage(bodyStage);
+    std::unique_ptr<PreviewStage> preview;
+    if (auto sinks = previewSinks(o, b); sinks.liveCount() > 0 || !sinks.failures().empty()) {
+        for (const auto& f : sinks.failures()) {
+            fmt::print(stderr, "caphub run: preview {}\n", f);
+        }
+        if (sinks.liveCount() > 0) {
+            auto skin = render::loadDefaultSkin();
+            if (!skin) {
+                fmt::print(stderr, "caphub run: preview off: {}\n", skin.error().message);
+            } else {
+                PreviewStage::Options po;
+                po.fps = o.previewFps;
+                preview = std::make_unique<PreviewStage>(b, bodyStage, std::move(*skin),
+                                                         std::move(sinks), po);
+                capture.addStage(*preview);
+            }
+        }
+    }
     if (bodyOptions.calibrate && !sim) {
         fmt::print("stand still in the {} for the first {:.0f} s\n",
                    bodyOptions.calibrate == body::ReferencePoseKind::T ? "T-pose" : "N-pose",
@@ -251,6 +324,11 @@ int run(const RunOptions& o) {
     }
     fmt::print("\n{} orientation updates", fusionStage.updates());
     printBody(bodyStage, b, placementOf);
+    if (preview) {
+        const std::string err = preview->error();
+        fmt::print("\npreview: {} frames rendered, {} skipped{}", preview->framesRendered(),
+                   preview->framesSkipped(), err.empty() ? "" : " - " + err);
+    }
     fmt::print(
         "\n{} samples in {:.2f} s, {} dropped, {} sensor losses; latency data-ready -> "
         "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",
@@ -300,6 +378,12 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "for the first seconds) or none (the board's nominal mountings)")
         ->capture_default_str();
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--preview", o->previews,
+                    "Preview frames to png:DIR, fb:/dev/fbN or http:[HOST:]PORT (repeatable; "
+                    "default: the board's outputs)");
+    cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,

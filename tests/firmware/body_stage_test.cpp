@@ -1,6 +1,7 @@
 // The body stage on the virtual suit: the subject stands in the T-pose while the filters settle,
 // the stage calibrates the mountings from it (finding the sensors' true, strapped mountings far
-// better than the board's nominal ones), then solves a pose per frame at the output rate.
+// better than the board's nominal ones), then solves a pose per frame at the output rate; the
+// preview renders those poses on its own thread.
 #include "firmware/runtime/body_stage.h"
 
 #include <chrono>
@@ -8,10 +9,12 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/stepped_capture.h"
 
 namespace {
@@ -66,6 +69,49 @@ TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     EXPECT_LT(calibrated, 0.5 * nominal);
     // Calibrated after 2.5 + 1 s of the 8 s (the first samples come ~0.2 s in), then 50 Hz.
     EXPECT_NEAR(static_cast<double>(bodyStage.poses()), 50 * (8.0 - 3.7), 15);
+}
+
+TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
+    SimulatedClock clock(Timestamp{1s});
+    bs::ClipOptions o;
+    o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
+    o.profile = bs::ErrorProfile::Ideal;
+    auto clip = bs::clipSources(o, clock.now());
+    auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
+    ASSERT_TRUE(suit) << suit.error().message;
+
+    const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) /
+                                      ("caphub-preview-" + std::to_string(getpid()));
+    std::filesystem::remove_all(dir);
+    firmware::FusionStage fusion(b, nullptr);
+    firmware::BodyStage bodyStage(b, fusion, nullptr, clock, firmware::BodyStage::Options{});
+    render::SinkSet sinks;
+    sinks.add(render::makePngFolderSink(dir));
+    auto skin = render::loadDefaultSkin();
+    ASSERT_TRUE(skin) << skin.error().message;
+    firmware::PreviewStage::Options po;
+    po.fps = 5;
+    {
+        firmware::PreviewStage preview(b, bodyStage, std::move(*skin), std::move(sinks), po);
+        firmware::SteppedCapture capture(*suit, clock);
+        capture.runUntil(clock.now() + 3s, [&](const firmware::SensorSample& s) {
+            fusion.onSample(s);
+            bodyStage.onSample(s);
+            preview.onSample(s);
+        });
+        preview.finish(clock.now());
+        EXPECT_EQ(preview.error(), "");
+        // 3 s at 5 frames per second of capture time: 15 handed over (the first sample comes
+        // ~0.2 s in, so 14 or 15); each is rendered or, when the renderer was busy, skipped.
+        EXPECT_GE(preview.framesRendered() + preview.framesSkipped(), 14u);
+        EXPECT_GE(preview.framesRendered(), 1u);
+        std::size_t files = 0;
+        for (const auto& e : std::filesystem::directory_iterator(dir)) {
+            files += e.path().extension() == ".png";
+        }
+        EXPECT_EQ(files, preview.framesRendered());
+    }
 }
 
 }  // namespace

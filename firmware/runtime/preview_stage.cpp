@@ -1,0 +1,133 @@
+#include "firmware/runtime/preview_stage.h"
+
+#include "hal/core/log.h"
+#include "render/skinning.h"
+
+namespace caphub::firmware {
+
+PreviewStage::PreviewStage(const board::Board& board, const BodyStage& body, render::Skin skin,
+                           render::SinkSet sinks, const Options& options)
+    : body_(body),
+      skin_(std::move(skin)),
+      sinks_(std::move(sinks)),
+      options_(options),
+      period_(periodFromHz(options.fps)) {
+    sensors_.fill(render::SensorState::None);
+    for (const auto& s : board.sensors) {
+        segmentOf_.push_back(static_cast<int>(s.segment));
+        sensors_[static_cast<std::size_t>(s.segment)] = render::SensorState::Uncalibrated;
+    }
+    thread_ = std::thread([this] { renderLoop(); });
+}
+
+PreviewStage::~PreviewStage() {
+    finish(Timestamp{});
+}
+
+void PreviewStage::onSample(const SensorSample& s) {
+    const Timestamp t = s.sample.t;
+    if (!first_) {
+        first_ = t;
+        next_ = t;
+    }
+    if (t < next_ || body_.poses() == lastPoses_) {
+        return;
+    }
+    next_ = t + period_;
+    lastPoses_ = body_.poses();
+    // Never wait for the renderer: if it holds the slot, this frame is skipped.
+    std::unique_lock lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) {
+        skipped_.fetch_add(1, std::memory_order_relaxed);
+        return;
+    }
+    const body::Pose& pose = body_.pose();
+    for (std::size_t i = 0; i < slot_.pose.qWorld.size(); ++i) {
+        slot_.pose.qWorld[i] = pose.qWorld[i];
+    }
+    slot_.pose.pelvisM = pose.positionM[0];
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        slot_.sensors[i] = sensors_[i] == render::SensorState::Uncalibrated && body_.calibrated()
+                               ? render::SensorState::Ok
+                               : sensors_[i];
+    }
+    slot_.timeS = toSeconds(t - *first_);
+    ++slot_.serial;
+    lock.unlock();
+    wake_.notify_one();
+}
+
+void PreviewStage::onEvent(const RuntimeEvent& e) {
+    if (e.sensor < 0 || static_cast<std::size_t>(e.sensor) >= segmentOf_.size()) {
+        return;
+    }
+    auto& state =
+        sensors_[static_cast<std::size_t>(segmentOf_[static_cast<std::size_t>(e.sensor)])];
+    if (e.kind == RuntimeEvent::Kind::SensorLost || e.kind == RuntimeEvent::Kind::LineSilent) {
+        state = render::SensorState::Lost;
+    } else if (e.kind == RuntimeEvent::Kind::SensorOnline) {
+        state = render::SensorState::Uncalibrated;  // Ok once the body is calibrated
+    }
+}
+
+void PreviewStage::finish(Timestamp) {
+    {
+        std::lock_guard lock(mutex_);
+        stop_ = true;
+    }
+    wake_.notify_one();
+    if (thread_.joinable()) {
+        thread_.join();
+    }
+}
+
+std::string PreviewStage::error() const {
+    std::lock_guard lock(const_cast<std::mutex&>(mutex_));
+    return error_;
+}
+
+void PreviewStage::renderLoop() {
+    // The OSMesa context belongs to the thread that makes it current: this one.
+    auto renderer = render::Renderer::create(skin_, options_.render);
+    if (!renderer) {
+        std::lock_guard lock(mutex_);
+        error_ = renderer.error().message;
+        log::logger(log::Category::Render).error("preview off: {}", error_);
+        return;
+    }
+    render::Skinner skinner(skin_);
+    render::Image image;
+    std::uint64_t shown = 0;
+    Frame frame;
+    while (true) {
+        {
+            std::unique_lock lock(mutex_);
+            wake_.wait(lock, [&] { return stop_ || slot_.serial != shown; });
+            if (stop_) {
+                // What was handed over and not drawn counts as skipped.
+                skipped_.fetch_add(slot_.serial - shown, std::memory_order_relaxed);
+                return;
+            }
+            // Frames handed over while the last one was drawn were replaced: skipped.
+            skipped_.fetch_add(slot_.serial - shown - 1, std::memory_order_relaxed);
+            frame = slot_;
+            shown = slot_.serial;
+        }
+        skinner.setPose(frame.pose);
+        skinner.skin();
+        render::FrameInput in;
+        in.vertices = skinner.output();
+        in.jointsM = skinner.jointPositionsM();
+        in.sensors = frame.sensors;
+        in.timeS = frame.timeS;
+        if (auto ok = (*renderer)->render(in, image); !ok) {
+            std::lock_guard lock(mutex_);
+            error_ = ok.error().message;
+            log::logger(log::Category::Render).error("preview stopped: {}", error_);
+            return;
+        }
+        sinks_.write(image, rendered_.fetch_add(1));
+    }
+}
+
+}  // namespace caphub::firmware
