@@ -26,19 +26,35 @@ case "${1:-}" in
 run)
     build release
     out="$root/out"
-    mkdir -p "$out/recordings"
+    rm -rf "$out/recordings" "$out/preview" "$out/exports"
+    mkdir -p "$out/recordings" "$out/exports"
     caphub=build/release/bin/caphub
-    # The main job: capture the default virtual suit (17 sensors) for a while, paced to real
-    # time, recording every sample and event; then describe the recording.
-    "$caphub" boards validate board/sim-suit.toml --quiet
-    "$caphub" run --board board/sim-suit.toml --duration "${CAPHUB_RUN_SECONDS:-10}" \
+    board=board/sim-suit.toml
+    "$caphub" boards validate "$board" --quiet
+    # The main job on the default virtual suit (17 sensors): calibrate the sensors (gyro at
+    # rest, accelerometer in six positions, magnetometer turned through every direction), then
+    # capture paced to real time: the subject calibrates in the T-pose, then walks; every sample,
+    # orientation, pose and event is recorded and preview frames are rendered. Then the
+    # recording is described and exported to BVH and glTF.
+    calibration="$out/calibration.toml"
+    rm -f "$calibration"
+    for kind in gyro accel mag; do
+        "$caphub" calibrate "$kind" --board "$board" --file "$calibration" | tail -n 1
+    done
+    "$caphub" run --board "$board" --duration "${CAPHUB_RUN_SECONDS:-12}" --calibrate tpose \
+        --calibration "$calibration" --preview "png:$out/preview" --preview-fps 5 \
         --out "$out/recordings" | tee "$out/run-report.txt"
-    recording=$(ls -t "$out"/recordings/*.cap | head -n 1)
+    recording=$(ls -t "$out"/recordings/*.cap | sed -n 1p)
     "$caphub" info "$recording" >"$out/recording-info.txt"
+    "$caphub" export "$recording" --format bvh -o "$out/exports/capture.bvh"
+    "$caphub" export "$recording" --format glb -o "$out/exports/capture.glb"
     echo
-    echo "output: $recording"
+    echo "output: $calibration (the sensors' calibration)"
+    echo "        $recording (the recording)"
     echo "        $out/run-report.txt (the capture's report)"
     echo "        $out/recording-info.txt (caphub info of the recording)"
+    echo "        $out/preview/ ($(ls "$out/preview" | wc -l) preview frames, PNG)"
+    echo "        $out/exports/capture.bvh, $out/exports/capture.glb (the exports)"
     ;;
 test)
     preset=${2:-debug}
