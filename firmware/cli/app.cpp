@@ -21,7 +21,6 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"selftest", "Probe every sensor of a board and check its configuration"},
     {"replay", "Play a recording back through the body solver and the preview"},
 };
 
@@ -53,6 +52,7 @@ int runCli(int argc, char** argv) {
     addFusionCommand(app, exitCode);
     addSimCommand(app, exitCode);
     addCalibrateCommand(app, exitCode);
+    addSelftestCommand(app, exitCode);
     addExportCommand(app, exitCode);
     for (const auto& p : kPlanned) {
         CLI::App* sub = app.add_subcommand(p.name, p.description);

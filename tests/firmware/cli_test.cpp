@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -215,6 +216,27 @@ TEST(CliCalibrate, AMalformedCalibrationFileIsAUsageErrorAndIsNotOverwritten) {
     EXPECT_EQ(r.exitCode, 2);
     EXPECT_THAT(r.output, HasSubstr("caphub-bad-cal.toml:3"));
     EXPECT_THAT(shell("cat " + file).output, HasSubstr("[1, 2]"));
+}
+
+TEST(CliSelftest, EverySensorOfTheVirtualSuitPasses) {
+    const CliRun r = caphub("selftest --board sim-upper10");
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("10 of 10 sensors passed"));
+    EXPECT_THAT(r.output, HasSubstr("planned load"));
+}
+
+TEST(CliSelftest, AMissingBusIsARuntimeErrorNamingIt) {
+    // The Pi board with its first bus renamed to a device no machine has.
+    std::ifstream in(std::string(CAPHUB_SOURCE_DIR) + "/board/rpi4-suit.toml");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string board = text.str();
+    const std::string from = "\"/dev/i2c-1\"";
+    ASSERT_NE(board.find(from), std::string::npos);
+    board.replace(board.find(from), from.size(), "\"/dev/i2c-caphub-absent\"");
+    const CliRun r = caphub("selftest --board " + writeTemp("absent-bus.toml", board));
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_THAT(r.output, HasSubstr("/dev/i2c-caphub-absent"));
 }
 
 }  // namespace
