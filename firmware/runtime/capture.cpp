@@ -37,7 +37,9 @@ int Capture::drain(Timestamp now) {
     int n = 0;
     for (auto& w : workers_) {
         SensorSample s;
-        while (w->samples().pop(s)) {
+        // A bounded batch per worker: a pipeline slower than the workers still comes back to
+        // check the end of the capture and its ticks (the rings absorb the rest or drop).
+        for (int k = 0; k < kMaxBatch && w->samples().pop(s); ++k) {
             for (auto* stage : stages_) {
                 stage->onSample(s);
             }
@@ -77,7 +79,8 @@ void Capture::pipelineLoop(Timestamp end) {
         w->stop();
     }
     const Timestamp now = clock_.now();
-    drain(now);  // what the workers produced before they stopped
+    while (drain(now) > 0) {  // what the workers produced before they stopped
+    }
     for (auto* stage : stages_) {
         stage->finish(now);
     }

@@ -61,7 +61,9 @@ public:
 
 private:
     void pipelineLoop(Timestamp end);
+    // Hands at most kMaxBatch samples per worker (and its events) to the stages.
     int drain(Timestamp now);
+    static constexpr int kMaxBatch = 256;
 
     board::SuitHardware& suit_;
     Clock& clock_;

@@ -1,10 +1,13 @@
 // The bus workers on the virtual suit: every sample of every sensor arrives, a sensor that
 // stops answering is reported while the others keep going, and comes back by itself.
+#include <thread>
+
 #include <gtest/gtest.h>
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/bus_worker.h"
+#include "firmware/runtime/capture.h"
 
 namespace caphub::firmware {
 namespace {
@@ -236,4 +239,36 @@ odr_hz = 100
 }
 
 }  // namespace
+// A stage slower than the workers (1 ms per sample against 5000 samples a second): the capture
+// still ends at its duration, handing the stages bounded batches between its checks of the end,
+// and the rings drop what the pipeline cannot take.
+class SlowStage final : public PipelineStage {
+public:
+    void onSample(const SensorSample&) override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        ++samples;
+    }
+    void onEvent(const RuntimeEvent&) override {}
+    std::uint64_t samples = 0;
+};
+
+TEST(Capture, ASlowPipelineStillStopsAtTheDuration) {
+    auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+    ASSERT_TRUE(loaded.ok());
+    // 10 sensors at 50 Hz paced 10 times faster than real time: 5000 samples per second.
+    SimulatedClock clock(timestampFromNs(1'000'000'000), 10.0);
+    auto suit = board::sim::buildVirtualSuit(*loaded.board, clock, nullptr);
+    ASSERT_TRUE(suit.ok()) << suit.error().message;
+    Capture capture(*suit, clock);
+    SlowStage slow;
+    capture.addStage(slow);
+    capture.start(seconds(2));
+    const CaptureStats stats = capture.wait();
+    // It ended (before the fix it never did): within one batch of 256 samples per worker
+    // (256 ms real, 2.6 s simulated) after the 2 s, and every sample was handed on or dropped.
+    EXPECT_GE(stats.elapsed, seconds(2));
+    EXPECT_LT(stats.elapsed, seconds(2) + milliseconds(2600 + 500));
+    EXPECT_EQ(stats.samples, slow.samples);
+}
+
 }  // namespace caphub::firmware
