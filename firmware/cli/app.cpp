@@ -21,7 +21,7 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"replay", "Play a recording back through the body solver and the preview"},
+    {"status", "The running hub's state as JSON: per-sensor rates, errors, latency, recording"},
 };
 
 }  // namespace
@@ -53,6 +53,7 @@ int runCli(int argc, char** argv) {
     addSimCommand(app, exitCode);
     addCalibrateCommand(app, exitCode);
     addSelftestCommand(app, exitCode);
+    addReplayCommand(app, exitCode);
     addExportCommand(app, exitCode);
     for (const auto& p : kPlanned) {
         CLI::App* sub = app.add_subcommand(p.name, p.description);

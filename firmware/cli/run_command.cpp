@@ -16,14 +16,13 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/preview_sinks.h"
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
 #include "hal/core/log.h"
-#include "render/framebuffer.h"
-#include "render/mjpeg_server.h"
 #include "render/sinks.h"
 
 namespace caphub::firmware {
@@ -56,13 +55,15 @@ struct RunOptions {
     double poseRateHz = 60;
     std::vector<std::string> previews;  // png:DIR, fb:/dev/fbN, http:PORT
     double previewFps = 10;
+    bool noPreview = false;
 };
 
-// The preview sinks of --preview (or, without it, the board's outputs). A sink that cannot be
-// opened is reported and the capture goes on without it.
+// The preview sinks of --preview, or without it the board's outputs.
 render::SinkSet previewSinks(const RunOptions& o, const board::Board& b) {
     std::vector<std::string> specs = o.previews;
-    if (specs.empty()) {
+    if (o.noPreview) {
+        specs.clear();
+    } else if (specs.empty()) {
         if (!b.outputs.previewPng.empty()) {
             specs.push_back("png:" + b.outputs.previewPng);
         }
@@ -70,40 +71,7 @@ render::SinkSet previewSinks(const RunOptions& o, const board::Board& b) {
             specs.push_back("http:" + b.outputs.mjpeg);
         }
     }
-    render::SinkSet sinks;
-    for (const auto& spec : specs) {
-        const auto colon = spec.find(':');
-        const std::string kind = spec.substr(0, colon);
-        const std::string arg = colon == std::string::npos ? "" : spec.substr(colon + 1);
-        if (kind == "png" && !arg.empty()) {
-            sinks.add(render::makePngFolderSink(arg));
-        } else if (kind == "fb" && !arg.empty()) {
-            auto fb = render::FramebufferSink::openDevice(arg, 32);
-            if (fb) {
-                sinks.add(render::makeFramebufferSink(std::move(*fb)));
-            } else {
-                sinks.addFailure(spec, fb.error());
-            }
-        } else if (kind == "http" && !arg.empty()) {
-            render::MjpegOptions mo;
-            const auto hostColon = arg.rfind(':');
-            if (hostColon != std::string::npos) {
-                mo.host = arg.substr(0, hostColon);
-            }
-            mo.port = std::atoi(arg.c_str() + (hostColon == std::string::npos ? 0 : hostColon + 1));
-            auto server = render::MjpegServer::start(mo);
-            if (server) {
-                fmt::print("preview: http://{}:{}/\n", mo.host, (*server)->port());
-                sinks.add(render::makeMjpegSink(std::move(*server)));
-            } else {
-                sinks.addFailure(spec, server.error());
-            }
-        } else {
-            sinks.addFailure(spec,
-                             Error{EINVAL, "expected png:DIR, fb:/dev/fbN or http:[HOST:]PORT"});
-        }
-    }
-    return sinks;
+    return openPreviewSinks(specs);
 }
 
 std::string timestampName() {
@@ -383,6 +351,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--preview", o->previews,
                     "Preview frames to png:DIR, fb:/dev/fbN or http:[HOST:]PORT (repeatable; "
                     "default: the board's outputs)");
+    cmd->add_flag("--no-preview", o->noPreview, "No preview, whatever the board's outputs say");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();

@@ -9,6 +9,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include "tests/firmware/cli_run.h"
 
@@ -109,7 +110,7 @@ TEST(Cli, InfoListsChipsAndSegments) {
 }
 
 TEST(Cli, PlannedSubcommandsSayTheyAreNotAvailable) {
-    const CliRun r = caphub("replay");
+    const CliRun r = caphub("status");
     EXPECT_EQ(r.exitCode, 1);
     EXPECT_THAT(r.output, HasSubstr("not in this build yet"));
 }
@@ -121,7 +122,8 @@ namespace {
 TEST(Cli, RunCapturesTheVirtualSuitAndInfoDescribesTheRecording) {
     const std::string out = ::testing::TempDir() + "caphub-cli-run";
     std::filesystem::remove_all(out);
-    const CliRun r = caphub("run --board sim-upper10 --duration 1 --speed 4 --out " + out);
+    const CliRun r =
+        caphub("run --board sim-upper10 --duration 1 --speed 4 --no-preview --out " + out);
     ASSERT_EQ(r.exitCode, 0) << r.output;
     EXPECT_THAT(r.output, HasSubstr("10 sensors on 1 buses"));
     EXPECT_THAT(r.output, HasSubstr(" 0 dropped, 0 sensor losses"));
@@ -200,8 +202,9 @@ TEST(CliCalibrate, GyroThenAccelOnTheVirtualSuitFillOneFileThatRunRecords) {
 
     const std::string dir = ::testing::TempDir() + "caphub-cal-run";
     std::filesystem::remove_all(dir);
-    const CliRun run = caphub("run --board sim-upper10 --duration 1 --speed 20 --calibration " +
-                              file + " --out " + dir);
+    const CliRun run =
+        caphub("run --board sim-upper10 --duration 1 --speed 5 --no-preview --calibration " + file +
+               " --out " + dir);
     ASSERT_EQ(run.exitCode, 0) << run.output;
     const CliRun info = shell(std::string(CAPHUB_BINARY) + " info " + dir + "/*.cap");
     EXPECT_THAT(info.output, HasSubstr("[calibration]"));
@@ -237,6 +240,44 @@ TEST(CliSelftest, AMissingBusIsARuntimeErrorNamingIt) {
     const CliRun r = caphub("selftest --board " + writeTemp("absent-bus.toml", board));
     EXPECT_EQ(r.exitCode, 1);
     EXPECT_THAT(r.output, HasSubstr("/dev/i2c-caphub-absent"));
+}
+
+TEST(CliReplay, ACapturesPosesPlayBackIntoPreviewFrames) {
+    const std::string dir = ::testing::TempDir() + "caphub-replay-" + std::to_string(getpid());
+    std::filesystem::remove_all(dir);
+    // 6 s at 5x: the T-pose calibration takes the first ~3.7 s, then 60 poses a second.
+    const CliRun run = caphub(
+        "run --board sim-upper10 --duration 6 --speed 5 --calibrate tpose --no-preview --out " +
+        dir);
+    ASSERT_EQ(run.exitCode, 0) << run.output;
+    EXPECT_THAT(run.output, HasSubstr("body calibration: tpose"));
+    const CliRun r = shell(std::string(CAPHUB_BINARY) + " replay " + dir +
+                           "/*.cap --speed 0 --fps 5 --preview png:" + dir + "/frames");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::size_t frames = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir + "/frames")) {
+        frames += e.path().extension() == ".png";
+    }
+    // About 2.3 s of poses at 5 frames per second.
+    EXPECT_GE(frames, 9u);
+    EXPECT_LE(frames, 14u);
+    EXPECT_THAT(r.output, HasSubstr(std::to_string(frames) + " frames in"));
+}
+
+TEST(CliReplay, ARecordingWithoutPosesIsAUsageError) {
+    const std::string dir = ::testing::TempDir() + "caphub-replay-np-" + std::to_string(getpid());
+    std::filesystem::remove_all(dir);
+    // The body stage writes no pose before its calibration: a 1 s capture has none.
+    ASSERT_EQ(
+        caphub("run --board sim-upper10 --duration 1 --speed 5 --calibrate tpose --no-preview "
+               "--out " +
+               dir)
+            .exitCode,
+        0);
+    const CliRun r = shell(std::string(CAPHUB_BINARY) + " replay " + dir +
+                           "/*.cap --preview png:" + dir + "/frames");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_THAT(r.output, HasSubstr("no pose records"));
 }
 
 }  // namespace
