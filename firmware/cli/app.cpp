@@ -11,21 +11,6 @@
 
 namespace caphub::firmware {
 
-namespace {
-
-// Subcommands whose issues have not landed yet: listed so that --help shows the whole command,
-// and refusing plainly when run.
-struct Planned {
-    const char* name;
-    const char* description;
-};
-
-constexpr Planned kPlanned[] = {
-    {"status", "The running hub's state as JSON: per-sensor rates, errors, latency, recording"},
-};
-
-}  // namespace
-
 int runCli(int argc, char** argv) {
     CLI::App app{"caphub: firmware of a standalone inertial motion-capture hub"};
     app.name("caphub");
@@ -54,15 +39,8 @@ int runCli(int argc, char** argv) {
     addCalibrateCommand(app, exitCode);
     addSelftestCommand(app, exitCode);
     addReplayCommand(app, exitCode);
+    addStatusCommand(app, exitCode);
     addExportCommand(app, exitCode);
-    for (const auto& p : kPlanned) {
-        CLI::App* sub = app.add_subcommand(p.name, p.description);
-        sub->allow_extras();
-        sub->callback([&exitCode, name = p.name] {
-            fmt::print(stderr, "caphub {}: not in this build yet\n", name);
-            exitCode = kExitRuntime;
-        });
-    }
 
     try {
         app.parse(argc, argv);

@@ -22,6 +22,7 @@
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
+#include "firmware/runtime/status_stage.h"
 #include "hal/core/log.h"
 #include "render/sinks.h"
 
@@ -56,6 +57,7 @@ struct RunOptions {
     std::vector<std::string> previews;  // png:DIR, fb:/dev/fbN, http:PORT
     double previewFps = 10;
     bool noPreview = false;
+    std::string statusFile;  // empty: defaultStatusPath()
 };
 
 // The preview sinks of --preview, or without it the board's outputs.
@@ -241,6 +243,9 @@ int run(const RunOptions& o) {
     BodyStage bodyStage(b, fusionStage, recorder ? &recorder->writer() : nullptr, *clock,
                         bodyOptions);
     capture.addStage(bodyStage);
+    StatusStage status(b, capture, recorder.get(),
+                       o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile), *clock);
+    capture.addStage(status);
     std::unique_ptr<PreviewStage> preview;
     if (auto sinks = previewSinks(o, b); sinks.liveCount() > 0 || !sinks.failures().empty()) {
         for (const auto& f : sinks.failures()) {
@@ -351,6 +356,9 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--preview", o->previews,
                     "Preview frames to png:DIR, fb:/dev/fbN or http:[HOST:]PORT (repeatable; "
                     "default: the board's outputs)");
+    cmd->add_option("--status-file", o->statusFile,
+                    "Where to keep the live status for `caphub status` (default: $CAPHUB_STATUS, "
+                    "/run/caphub/status.json, or the temporary folder)");
     cmd->add_flag("--no-preview", o->noPreview, "No preview, whatever the board's outputs say");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
         ->check(CLI::PositiveNumber)

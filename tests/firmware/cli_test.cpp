@@ -109,10 +109,25 @@ TEST(Cli, InfoListsChipsAndSegments) {
     EXPECT_THAT(r.output, HasSubstr("segments (21)"));
 }
 
-TEST(Cli, PlannedSubcommandsSayTheyAreNotAvailable) {
-    const CliRun r = caphub("status");
-    EXPECT_EQ(r.exitCode, 1);
-    EXPECT_THAT(r.output, HasSubstr("not in this build yet"));
+TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
+    const std::string dir = ::testing::TempDir() + "caphub-status-" + std::to_string(getpid());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const std::string file = dir + "/status.json";
+    ASSERT_EQ(caphub("run --board sim-upper10 --duration 1 --speed 4 --no-preview --no-record "
+                     "--status-file " +
+                     file)
+                  .exitCode,
+              0);
+    const CliRun r = caphub("status --file " + file);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("\"board\": \"sim-upper10\""));
+    EXPECT_THAT(r.output, HasSubstr("\"running\": false"));
+    EXPECT_THAT(r.output, HasSubstr("\"name\": \"l_forearm\""));
+    EXPECT_THAT(r.output, HasSubstr("\"latency_ms\""));
+    const CliRun none = caphub("status --file " + dir + "/absent.json");
+    EXPECT_EQ(none.exitCode, 1);
+    EXPECT_THAT(none.output, HasSubstr("no hub has run here"));
 }
 
 }  // namespace
