@@ -103,12 +103,11 @@ void PreviewStage::renderLoop() {
         {
             std::unique_lock lock(mutex_);
             wake_.wait(lock, [&] { return stop_ || slot_.serial != shown; });
-            if (stop_) {
-                // What was handed over and not drawn counts as skipped.
-                skipped_.fetch_add(slot_.serial - shown, std::memory_order_relaxed);
-                return;
+            if (slot_.serial == shown) {
+                return;  // stopping, and the last pose is drawn
             }
-            // Frames handed over while the last one was drawn were replaced: skipped.
+            // Frames handed over while the last one was drawn were replaced: skipped. When
+            // stopping, the latest is still drawn, so that the last frame shows the last pose.
             skipped_.fetch_add(slot_.serial - shown - 1, std::memory_order_relaxed);
             frame = slot_;
             shown = slot_.serial;

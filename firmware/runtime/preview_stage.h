@@ -1,7 +1,8 @@
 // The preview: a thread of its own renders the body's latest pose (skinned default mesh, OSMesa)
 // a few times a second into the sinks (PNG folder, framebuffer, MJPEG stream). The pipeline only
 // hands over the latest pose through a slot it never waits for, so rendering never stalls
-// sampling; frames the renderer cannot keep up with are skipped, not queued.
+// sampling; frames the renderer cannot keep up with are skipped, not queued. At the end the
+// latest pose handed over is drawn before the thread stops.
 #pragma once
 
 #include <array>
@@ -37,7 +38,7 @@ public:
     void finish(Timestamp now) override;
 
     std::uint64_t framesRendered() const { return rendered_.load(); }
-    // Frames not drawn: the renderer was busy, or the capture ended first.
+    // Frames not drawn: replaced by a newer one while the renderer was busy.
     std::uint64_t framesSkipped() const { return skipped_.load(); }
     // Why the renderer could not start (empty when it did).
     std::string error() const;
