@@ -17,6 +17,22 @@
 
 namespace caphub::render {
 
+std::optional<CameraPreset> parseCameraPreset(std::string_view name) {
+    if (name == "front") {
+        return CameraPreset::Front;
+    }
+    if (name == "side") {
+        return CameraPreset::Side;
+    }
+    if (name == "orbit") {
+        return CameraPreset::Orbit;
+    }
+    if (name == "follow") {
+        return CameraPreset::Follow;
+    }
+    return std::nullopt;
+}
+
 namespace {
 
 using Mat4f = Eigen::Matrix4f;

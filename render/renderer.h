@@ -5,7 +5,9 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
+#include <string_view>
 
 #include "hal/core/error.h"
 #include "hal/core/quaternion.h"
@@ -29,6 +31,9 @@ enum class CameraPreset : std::uint8_t {
     Orbit,   // circling the capture area, one turn in 20 s
     Follow,  // front-left, three-quarter view that keeps the pelvis centred
 };
+
+// "front", "side", "orbit" or "follow"; nothing for another name.
+std::optional<CameraPreset> parseCameraPreset(std::string_view name);
 
 struct RenderOptions {
     int width = 320;

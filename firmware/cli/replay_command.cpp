@@ -60,18 +60,12 @@ int replay(const ReplayOptions& o) {
         return kExitRuntime;
     }
     render::RenderOptions ro;
-    if (o.camera == "front") {
-        ro.camera = render::CameraPreset::Front;
-    } else if (o.camera == "side") {
-        ro.camera = render::CameraPreset::Side;
-    } else if (o.camera == "orbit") {
-        ro.camera = render::CameraPreset::Orbit;
-    } else if (o.camera == "follow") {
-        ro.camera = render::CameraPreset::Follow;
-    } else {
+    const auto preset = render::parseCameraPreset(o.camera);
+    if (!preset) {
         fmt::print(stderr, "caphub replay: --camera: expected front, side, orbit or follow\n");
         return kExitUsage;
     }
+    ro.camera = *preset;
     auto renderer = render::Renderer::create(*skin, ro);
     if (!renderer) {
         fmt::print(stderr, "caphub replay: {}\n", renderer.error().message);

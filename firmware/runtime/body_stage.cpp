@@ -48,7 +48,6 @@ BodyStage::BodyStage(const board::Board& board, const FusionStage& fusion, Recor
         sensorOfSegment_[seg] = static_cast<int>(i);
         nominal_[seg] = board.sensors[i].mounting;
     }
-    latencyNs_.reserve(1 << 16);
     if (!options_.calibrate) {
         // No calibration pose: the nominal mountings, the subject facing north.
         calibration_.mask = mask_;
@@ -154,18 +153,7 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
         }
         (void)writer_->writePose(t, pose.positionM[0].cast<float>(), joints_);
     }
-    latencyNs_.push_back(toNs(clock_.now() - newestSample));
-}
-
-Duration BodyStage::latencyPercentile(double p) const {
-    if (latencyNs_.empty()) {
-        return Duration{0};
-    }
-    std::vector<std::int64_t> v = latencyNs_;
-    const auto k =
-        static_cast<std::size_t>(std::clamp(p, 0.0, 1.0) * static_cast<double>(v.size() - 1) + 0.5);
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return Duration{v[k]};
+    latency_.add(clock_.now() - newestSample);
 }
 
 }  // namespace caphub::firmware

@@ -11,6 +11,7 @@
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/latency_window.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
 
@@ -43,8 +44,9 @@ public:
     std::uint64_t poses() const { return poses_; }
     const body::Pose& pose() const { return solver_.pose(); }
     // Per pose, the time from the newest sample's data-ready edge to the pose being written, on
-    // the capture clock as the pipeline saw it: percentiles over the run (0..1).
-    Duration latencyPercentile(double p) const;
+    // the capture clock as the pipeline saw it: percentiles (0..1) over the last 65536 poses
+    // (18 min at 60 Hz).
+    Duration latencyPercentile(double p) const { return latency_.percentile(p); }
 
 private:
     void calibrate(Timestamp t);
@@ -70,7 +72,7 @@ private:
     std::vector<Eigen::Vector4d> sum_;
     std::vector<int> count_;
     std::uint64_t poses_ = 0;
-    std::vector<std::int64_t> latencyNs_;
+    LatencyWindow latency_{1 << 16};
     std::array<Eigen::Quaternionf, body::kSegmentCount> joints_{};
 };
 

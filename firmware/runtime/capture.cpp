@@ -11,7 +11,7 @@ constexpr Duration kIdlePause = std::chrono::microseconds(200);
 }  // namespace
 
 Capture::Capture(board::SuitHardware& suit, Clock& clock, BusWorker::Options options)
-    : suit_(suit), clock_(clock), latencyNs_(kLatencyWindow) {
+    : suit_(suit), clock_(clock), latency_(kLatencyWindow) {
     for (auto& bus : suit_.buses) {
         workers_.push_back(std::make_unique<BusWorker>(bus, clock_, options));
     }
@@ -43,7 +43,7 @@ int Capture::drain(Timestamp now) {
             for (auto* stage : stages_) {
                 stage->onSample(s);
             }
-            latencyNs_[latencyCount_++ % kLatencyWindow] = toNs(now - s.sample.t);
+            latency_.add(now - s.sample.t);
             ++stats_.samples;
             ++n;
         }
@@ -91,19 +91,9 @@ void Capture::pipelineLoop(Timestamp end) {
             stats_.lost += w->counters(i).lost.load();
         }
     }
-    const std::size_t count = std::min(latencyCount_, kLatencyWindow);
-    if (count > 0) {
-        std::vector<std::int64_t> v(latencyNs_.begin(),
-                                    latencyNs_.begin() + static_cast<long>(count));
-        auto pct = [&](double p) {
-            auto it = v.begin() + static_cast<long>(p * static_cast<double>(count - 1));
-            std::nth_element(v.begin(), it, v.end());
-            return Duration{*it};
-        };
-        stats_.latencyP50 = pct(0.5);
-        stats_.latencyP99 = pct(0.99);
-        stats_.latencyMax = Duration{*std::max_element(v.begin(), v.end())};
-    }
+    stats_.latencyP50 = latency_.percentile(0.5);
+    stats_.latencyP99 = latency_.percentile(0.99);
+    stats_.latencyMax = latency_.max();
 }
 
 CaptureStats Capture::wait() {

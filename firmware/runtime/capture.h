@@ -13,6 +13,7 @@
 #include "board/board.h"
 #include "board/hardware.h"
 #include "firmware/runtime/bus_worker.h"
+#include "firmware/runtime/latency_window.h"
 
 namespace caphub::firmware {
 
@@ -73,8 +74,7 @@ private:
     std::thread pipeline_;
     Timestamp started_{};
     CaptureStats stats_;
-    std::vector<std::int64_t> latencyNs_;  // preallocated ring of recent latencies
-    std::size_t latencyCount_ = 0;
+    LatencyWindow latency_;  // the most recent samples' data-ready -> pipeline latencies
 };
 
 }  // namespace caphub::firmware

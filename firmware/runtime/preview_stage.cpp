@@ -82,7 +82,7 @@ void PreviewStage::finish(Timestamp) {
 }
 
 std::string PreviewStage::error() const {
-    std::lock_guard lock(const_cast<std::mutex&>(mutex_));
+    std::lock_guard lock(mutex_);
     return error_;
 }
 

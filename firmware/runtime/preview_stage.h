@@ -64,7 +64,7 @@ private:
     Timestamp next_{};
     std::uint64_t lastPoses_ = 0;
 
-    std::mutex mutex_;  // guards slot_, stop_, error_; the pipeline only try-locks it
+    mutable std::mutex mutex_;  // guards slot_, stop_, error_; the pipeline only try-locks it
     std::condition_variable wake_;
     Frame slot_;
     bool stop_ = false;

@@ -45,7 +45,7 @@ void StatusStage::onSample(const SensorSample& s) {
     if (i < samples_.size()) {
         ++samples_[i];
     }
-    latencyNs_[latencyCount_++ % kLatencyWindow] = toNs(clock_.now() - s.sample.t);
+    latency_.add(clock_.now() - s.sample.t);
 }
 
 void StatusStage::onEvent(const RuntimeEvent& e) {
@@ -111,19 +111,12 @@ std::string StatusStage::json(Timestamp now, bool running) const {
         buses.push_back(bus);
     }
     doc["buses"] = buses;
-    const std::size_t n = std::min(latencyCount_, kLatencyWindow);
-    if (n > 0) {
-        std::vector<std::int64_t> v(latencyNs_.begin(), latencyNs_.begin() + static_cast<long>(n));
-        const auto pct = [&v](double p) {
-            const auto it = v.begin() + static_cast<long>(p * static_cast<double>(v.size() - 1));
-            std::nth_element(v.begin(), it, v.end());
-            return static_cast<double>(*it) * 1e-6;
-        };
-        doc["latency_ms"] = {
-            {"window", n},
-            {"p50", pct(0.5)},
-            {"p99", pct(0.99)},
-            {"max", static_cast<double>(*std::max_element(v.begin(), v.end())) * 1e-6}};
+    if (const std::size_t n = latency_.size(); n > 0) {
+        const auto ms = [](Duration d) { return toSeconds(d) * 1e3; };
+        doc["latency_ms"] = {{"window", n},
+                             {"p50", ms(latency_.percentile(0.5))},
+                             {"p99", ms(latency_.percentile(0.99))},
+                             {"max", ms(latency_.max())}};
     }
     if (recorder_ != nullptr) {
         const auto st = recorder_->writer().stats();

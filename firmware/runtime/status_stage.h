@@ -4,13 +4,13 @@
 // atomically (written beside it, then renamed), so a reader never sees half a document.
 #pragma once
 
-#include <array>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/latency_window.h"
 #include "firmware/runtime/recorder_stage.h"
 
 namespace caphub::firmware {
@@ -45,9 +45,7 @@ private:
     Timestamp started_{};
     Timestamp lastWrite_{};
     bool first_ = true;
-    static constexpr std::size_t kLatencyWindow = 4096;
-    std::array<std::int64_t, kLatencyWindow> latencyNs_{};
-    std::size_t latencyCount_ = 0;
+    LatencyWindow latency_{4096};
     std::string error_;  // why the last write failed, reported once
 };
 

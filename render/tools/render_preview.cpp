@@ -77,18 +77,12 @@ int main(int argc, char** argv) {
     render::RenderOptions ro;
     ro.width = width;
     ro.height = height;
-    if (camera == "front") {
-        ro.camera = render::CameraPreset::Front;
-    } else if (camera == "side") {
-        ro.camera = render::CameraPreset::Side;
-    } else if (camera == "orbit") {
-        ro.camera = render::CameraPreset::Orbit;
-    } else if (camera == "follow") {
-        ro.camera = render::CameraPreset::Follow;
-    } else {
+    const auto preset = render::parseCameraPreset(camera);
+    if (!preset) {
         return fail(Error{
             EINVAL, fmt::format("--camera {}: expected front, side, orbit or follow", camera)});
     }
+    ro.camera = *preset;
     render::Skinner skinner(*skin);
     skinner.setPose(pose);
     skinner.skin();

@@ -1,11 +1,11 @@
 // Running the caphub program (and other commands) from tests, as a person would at a shell.
 #pragma once
 
-#include <sys/wait.h>
-
 #include <array>
 #include <cstdio>
 #include <string>
+
+#include <sys/wait.h>
 
 namespace caphub::testing {
 

@@ -16,8 +16,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <tiny_gltf.h>
+#include <unistd.h>
 
 #include "board/sim/bvh.h"
 #include "firmware/export/euler.h"
