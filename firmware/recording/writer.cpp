@@ -4,6 +4,7 @@
 #include <cerrno>
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <unistd.h>
 
 #include "firmware/recording/crc32c.h"
@@ -46,14 +47,26 @@ Result<std::unique_ptr<RecordingWriter>> RecordingWriter::create(const std::stri
         (void)::fsync(dirFd.get());
     }
     w->lastSync_ = w->clock_.now();
+    RecordingWriter* self = w.get();
+    w->io_ = std::thread([self] {
+        ::pthread_setname_np(::pthread_self(), "caphub-rec-io");
+        self->ioLoop();
+    });
     return w;
 }
 
 RecordingWriter::RecordingWriter(std::string path, hal::UniqueFd fd, const WriterOptions& options)
-    : path_(std::move(path)),
-      fd_(std::move(fd)),
-      options_(options),
-      buffer_(std::max<std::size_t>(options.bufferBytes, kMaxPayloadBytes / 16)) {}
+    : path_(std::move(path)), fd_(std::move(fd)), options_(options) {
+    const std::size_t bytes = std::max<std::size_t>(options.bufferBytes, kMaxPayloadBytes / 16);
+    queued_.reserve(buffers_.size());
+    free_.reserve(buffers_.size());
+    for (auto& b : buffers_) {
+        b.bytes.resize(bytes);
+        free_.push_back(&b);
+    }
+    active_ = free_.back();
+    free_.pop_back();
+}
 
 RecordingWriter::~RecordingWriter() {
     (void)close();
@@ -70,100 +83,166 @@ int RecordingWriter::writeAll(const std::uint8_t* data, std::size_t n) {
         }
         data += w;
         n -= static_cast<std::size_t>(w);
-        stats_.bytesWritten += static_cast<std::uint64_t>(w);
+        bytesWritten_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);
     }
     return 0;
 }
 
+WriterStats RecordingWriter::stats() const {
+    WriterStats s;
+    s.records = records_;
+    s.bytesWritten = bytesWritten_.load(std::memory_order_relaxed);
+    s.syncs = syncs_.load(std::memory_order_relaxed);
+    s.durableRecords = durableRecords_.load(std::memory_order_acquire);
+    return s;
+}
+
 std::uint8_t* RecordingWriter::begin(RecordType type, Timestamp t, std::size_t payloadBytes) {
-    if (error_ != 0 || !fd_.isValid() || payloadBytes > kMaxPayloadBytes) {
+    if (error() != 0 || closed_ || payloadBytes > kMaxPayloadBytes) {
         return nullptr;
     }
     const std::size_t total = kRecordOverheadBytes + payloadBytes;
-    if (used_ + total > buffer_.size()) {
-        if (flush(false) < 0) {
+    if (active_->used + total > active_->bytes.size()) {
+        if (handOff(false) < 0) {
             return nullptr;
         }
-        if (total > buffer_.size()) {
-            buffer_.resize(total);  // a rare oversize record (metadata); not on the sample path
+        if (total > active_->bytes.size()) {
+            active_->bytes.resize(total);  // a rare oversize record (metadata); not per sample
         }
     }
-    std::uint8_t* r = buffer_.data() + used_;
+    std::uint8_t* r = active_->bytes.data() + active_->used;
     std::copy(kSync.begin(), kSync.end(), r);
     r[4] = static_cast<std::uint8_t>(type);
     r[5] = 0;
     put16(r + 6, 0);
     put32(r + 8, static_cast<std::uint32_t>(payloadBytes));
     put64(r + 12, static_cast<std::uint64_t>(toNs(t)));
-    recordStart_ = used_;
-    used_ += total;
+    recordStart_ = active_->used;
+    active_->used += total;
     return r + kRecordHeaderBytes;
 }
 
 int RecordingWriter::end() {
-    std::uint8_t* r = buffer_.data() + recordStart_;
+    std::uint8_t* r = active_->bytes.data() + recordStart_;
     const std::size_t payload = get32(r + 8);
     const std::uint32_t crc = crc32c(std::span(r + 4, kRecordHeaderBytes - 4 + payload));
     put32(r + kRecordHeaderBytes + payload, crc);
-    ++bufferedRecords_;
-    ++stats_.records;
+    ++active_->records;
+    ++records_;
     if (clock_.now() - lastSync_ >= options_.syncInterval) {
-        return flush(true);
+        return handOff(true);
     }
     return 0;
+}
+
+int RecordingWriter::handOff(bool sync) {
+    if (sync) {
+        lastSync_ = clock_.now();
+    }
+    if (int e = error(); e != 0) {
+        return e;
+    }
+    if (closed_) {
+        return -EBADF;
+    }
+    if (active_->used == 0 && !(sync && unsynced_)) {
+        return 0;  // nothing to write or to make durable
+    }
+    active_->sync = sync;
+    unsynced_ = !sync;
+    std::unique_lock lock(mutex_);
+    queued_.push_back(active_);
+    ioWake_.notify_one();
+    // The I/O thread returns every buffer it takes, even after an error.
+    callerWake_.wait(lock, [this] { return !free_.empty(); });
+    active_ = free_.back();
+    free_.pop_back();
+    lock.unlock();
+    return error();
+}
+
+void RecordingWriter::writeOut(Buffer& b) {
+    if (error() != 0) {
+        return;  // the recording has stopped: later buffers are dropped
+    }
+    if (b.used > 0) {
+        if (int r = writeAll(b.bytes.data(), b.used); r < 0) {
+            // Stop cleanly: nothing more is written, what is on disk stays readable (a torn
+            // last record is skipped by the reader).
+            error_.store(r, std::memory_order_release);
+            return;
+        }
+        writtenRecords_ += b.records;
+    }
+    if (b.sync) {
+        if (::fdatasync(fd_.get()) < 0) {
+            error_.store(-errno, std::memory_order_release);
+            return;
+        }
+        syncs_.fetch_add(1, std::memory_order_relaxed);
+        durableRecords_.store(writtenRecords_, std::memory_order_release);
+    }
+}
+
+void RecordingWriter::ioLoop() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+        ioWake_.wait(lock, [this] { return !queued_.empty() || stopping_; });
+        if (queued_.empty()) {
+            return;  // stopping, and everything queued is written
+        }
+        Buffer* b = queued_.front();
+        queued_.erase(queued_.begin());
+        ioBusy_ = true;
+        lock.unlock();
+        writeOut(*b);
+        b->used = 0;
+        b->records = 0;
+        lock.lock();
+        ioBusy_ = false;
+        free_.push_back(b);
+        callerWake_.notify_all();
+    }
 }
 
 int RecordingWriter::flush(bool sync) {
-    if (error_ != 0) {
-        return error_;
+    if (int r = handOff(sync); r < 0) {
+        return r;
     }
-    if (!fd_.isValid()) {
-        return -EBADF;
-    }
-    if (used_ > 0) {
-        if (int r = writeAll(buffer_.data(), used_); r < 0) {
-            // Stop cleanly: nothing more is written, what is on disk stays readable (a torn
-            // last record is skipped by the reader).
-            error_ = r;
-            used_ = 0;
-            return r;
-        }
-        used_ = 0;
-        writtenRecords_ += bufferedRecords_;
-        bufferedRecords_ = 0;
-    }
-    if (sync) {
-        if (::fdatasync(fd_.get()) < 0) {
-            error_ = -errno;
-            return error_;
-        }
-        ++stats_.syncs;
-        stats_.durableRecords = writtenRecords_;
-        lastSync_ = clock_.now();
-    }
-    return 0;
+    std::unique_lock lock(mutex_);
+    callerWake_.wait(lock, [this] { return queued_.empty() && !ioBusy_; });
+    return error();
 }
 
 int RecordingWriter::maybeSync() {
-    if (error_ == 0 && fd_.isValid() && clock_.now() - lastSync_ >= options_.syncInterval) {
-        return flush(true);
+    if (error() == 0 && !closed_ && clock_.now() - lastSync_ >= options_.syncInterval) {
+        return handOff(true);
     }
-    return error_;
+    return error();
 }
 
 int RecordingWriter::close() {
-    if (!fd_.isValid()) {
-        return error_;
+    if (closed_) {
+        return error();
     }
-    const int r = flush(true);
+    if (io_.joinable()) {
+        (void)handOff(true);
+        {
+            std::lock_guard lock(mutex_);
+            stopping_ = true;
+        }
+        ioWake_.notify_one();
+        io_.join();
+    }
+    closed_ = true;
     fd_.reset();
-    return r;
+    return error();
 }
 
 int RecordingWriter::writeRawSample(int sensor, const hal::ImuSample& s) {
     std::uint8_t* p = begin(RecordType::RawSample, s.t, kRawSampleBytes);
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     put16(p, static_cast<std::uint16_t>(sensor));
     p[2] = s.flags;
@@ -180,7 +259,7 @@ int RecordingWriter::writeRawSample(int sensor, const hal::ImuSample& s) {
 int RecordingWriter::writeOrientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) {
     std::uint8_t* p = begin(RecordType::Orientation, t, kOrientationBytes);
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     put16(p, static_cast<std::uint16_t>(sensor));
     put16(p + 2, 0);
@@ -195,7 +274,7 @@ int RecordingWriter::writePose(Timestamp t, const Eigen::Vector3f& rootM,
                                std::span<const Eigen::Quaternionf> joints) {
     std::uint8_t* p = begin(RecordType::Pose, t, kPoseFixedBytes + 16 * joints.size());
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     put16(p, static_cast<std::uint16_t>(joints.size()));
     put16(p + 2, 0);
@@ -217,7 +296,7 @@ int RecordingWriter::writeEvent(Timestamp t, EventKind kind, int sensor, int err
                                 std::string_view text) {
     std::uint8_t* p = begin(RecordType::Event, t, kEventFixedBytes + text.size());
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     p[0] = static_cast<std::uint8_t>(kind);
     p[1] = 0;
@@ -230,7 +309,7 @@ int RecordingWriter::writeEvent(Timestamp t, EventKind kind, int sensor, int err
 int RecordingWriter::writeMetadata(Timestamp t, std::string_view toml) {
     std::uint8_t* p = begin(RecordType::Metadata, t, toml.size());
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     std::copy(toml.begin(), toml.end(), p);
     return end();
@@ -239,7 +318,7 @@ int RecordingWriter::writeMetadata(Timestamp t, std::string_view toml) {
 int RecordingWriter::writeMarker(Timestamp t, std::string_view label) {
     std::uint8_t* p = begin(RecordType::Marker, t, label.size());
     if (p == nullptr) {
-        return error_ != 0 ? error_ : -EINVAL;
+        return refusal();
     }
     std::copy(label.begin(), label.end(), p);
     return end();

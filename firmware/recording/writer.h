@@ -1,13 +1,21 @@
-// Writes a .cap recording without losing data: records are framed into a preallocated buffer
-// (no allocation per record), written out when it fills, and made durable (fdatasync) at a
-// bounded interval, so a power cut loses at most that interval. A write error such as a full
-// disk stops the recording cleanly: what was written stays readable, and later calls report it.
+// Writes a .cap recording without losing data: records are framed into preallocated buffers
+// (no allocation per record); a full buffer, or the current one when the sync interval has
+// passed, goes to the writer's own I/O thread, which writes it out and makes it durable
+// (fdatasync), so a power cut loses at most about that interval and the thread that records
+// never waits for the disk (unless every buffer is in flight: the disk is slower than the data).
+// A write error such as a full disk stops the recording cleanly: what was written stays
+// readable, and later calls report it.
 #pragma once
 
+#include <array>
+#include <atomic>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -22,8 +30,11 @@ namespace caphub::firmware {
 
 struct WriterOptions {
     Duration syncInterval = std::chrono::milliseconds(200);  // the most a power cut may lose
-    std::size_t bufferBytes = 256 * 1024;
+    std::size_t bufferBytes = 256 * 1024;                    // each of kWriterBuffers
 };
+
+// Buffers per writer: one being filled, the others queued for or in the I/O thread.
+inline constexpr int kWriterBuffers = 4;
 
 struct WriterStats {
     std::uint64_t records = 0;
@@ -50,40 +61,74 @@ public:
     [[nodiscard]] int writeMetadata(Timestamp t, std::string_view toml);
     [[nodiscard]] int writeMarker(Timestamp t, std::string_view label);
 
-    // Writes out the buffer, and with sync also makes it durable. Called by the writes
-    // themselves when the buffer is full or the sync interval has passed.
+    // Writes out what is buffered, and with sync also makes it durable; returns when done.
+    // The writes themselves hand buffers to the I/O thread without waiting.
     [[nodiscard]] int flush(bool sync);
-    // Writes out and syncs when the sync interval has passed: call it when idle, so the bound
-    // holds even when no records arrive.
+    // Hands the buffer over to be written and synced when the sync interval has passed: call
+    // it when idle, so the bound holds even when no records arrive.
     [[nodiscard]] int maybeSync();
-    // Flushes, syncs and closes. Safe to call twice.
+    // Flushes, syncs, stops the I/O thread and closes. Safe to call twice.
     [[nodiscard]] int close();
 
     // 0, or the -errno that stopped the recording (-ENOSPC: the disk is full).
-    int error() const { return error_; }
-    const WriterStats& stats() const { return stats_; }
+    int error() const { return error_.load(std::memory_order_acquire); }
+    // A snapshot; records counts those written by the caller, the rest what reached the kernel
+    // and the disk.
+    WriterStats stats() const;
     const std::string& path() const { return path_; }
 
 private:
+    struct Buffer {
+        std::vector<std::uint8_t> bytes;
+        std::size_t used = 0;
+        std::uint64_t records = 0;
+        bool sync = false;
+    };
+
     RecordingWriter(std::string path, hal::UniqueFd fd, const WriterOptions& options);
 
     // Reserves a framed record of payloadBytes in the buffer; returns its payload or nullptr.
     std::uint8_t* begin(cap::RecordType type, Timestamp t, std::size_t payloadBytes);
     int end();
+    // Why begin() refused a record: the error that stopped the recording, or -EINVAL.
+    int refusal() const { return error() != 0 ? error() : -EINVAL; }
+    // Queues the current buffer for the I/O thread (with sync: and an fdatasync after it) and
+    // takes a free one, waiting only when none is free.
+    int handOff(bool sync);
+    void ioLoop();
+    void writeOut(Buffer& b);
     int writeAll(const std::uint8_t* data, std::size_t n);
 
     std::string path_;
     hal::UniqueFd fd_;
     WriterOptions options_;
-    std::vector<std::uint8_t> buffer_;
-    std::size_t used_ = 0;
-    std::size_t recordStart_ = 0;
-    std::uint64_t bufferedRecords_ = 0;
-    std::uint64_t writtenRecords_ = 0;
-    Timestamp lastSync_{};
     MonotonicClock clock_;
-    WriterStats stats_;
-    int error_ = 0;
+    std::atomic<int> error_{0};
+
+    // The recording thread's side.
+    std::array<Buffer, kWriterBuffers> buffers_;
+    Buffer* active_ = nullptr;
+    std::size_t recordStart_ = 0;
+    std::uint64_t records_ = 0;
+    Timestamp lastSync_{};
+    bool unsynced_ = false;  // buffers handed off since the last sync
+    bool closed_ = false;
+
+    // Between the two threads.
+    std::mutex mutex_;
+    std::condition_variable ioWake_;
+    std::condition_variable callerWake_;
+    std::vector<Buffer*> queued_;  // in order; capacity reserved for every buffer
+    std::vector<Buffer*> free_;
+    bool ioBusy_ = false;
+    bool stopping_ = false;
+    std::thread io_;
+
+    // The I/O thread's side.
+    std::uint64_t writtenRecords_ = 0;
+    std::atomic<std::uint64_t> bytesWritten_{0};
+    std::atomic<std::uint64_t> syncs_{0};
+    std::atomic<std::uint64_t> durableRecords_{0};
 };
 
 }  // namespace caphub::firmware
