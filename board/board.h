@@ -86,6 +86,16 @@ struct OutputsConfig {
     std::string mjpeg;                      // host:port of the MJPEG stream, empty: off
 };
 
+// How the hub runs its capture threads (bus workers and the pipeline that publishes poses).
+struct RuntimeConfig {
+    // SCHED_FIFO priority of the capture threads (1-99; the pipeline one below the bus workers),
+    // 0: the normal scheduler.
+    int realtimePriority = 0;
+    // CPUs the capture threads may run on (empty: any).
+    std::vector<int> cpus;
+    SourceLocation where;
+};
+
 struct SubjectConfig {
     double heightM = 1.75;
     std::optional<double> massKg;
@@ -103,6 +113,7 @@ struct Board {
     DisplayConfig display;
     OutputsConfig outputs;
     SubjectConfig subject;
+    RuntimeConfig runtime;
 };
 
 // True when every bus of the board is simulated: the board is a virtual suit.

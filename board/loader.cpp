@@ -256,6 +256,7 @@ private:
     void parseSensor(const toml::table& t, const std::string& path);
     void parseDisplay(const toml::table& root);
     void parseOutputs(const toml::table& root);
+    void parseRuntime(const toml::table& root);
     void checkBusClocks();
     void checkBudget();
 
@@ -295,9 +296,9 @@ private:
 };
 
 void Parser::run(const toml::table& root) {
-    rejectUnknownKeys(
-        root, "",
-        {"schema", "name", "description", "subject", "bus", "mux", "sensor", "display", "outputs"});
+    rejectUnknownKeys(root, "",
+                      {"schema", "name", "description", "subject", "bus", "mux", "sensor",
+                       "display", "outputs", "runtime"});
     if (auto v = getInteger(root, "schema", "", true,
                             fmt::format("the board file format version, {}", kSchemaVersion), 1,
                             kSchemaVersion)) {
@@ -315,6 +316,7 @@ void Parser::run(const toml::table& root) {
     parseSensors(root);
     parseDisplay(root);
     parseOutputs(root);
+    parseRuntime(root);
     checkBusClocks();
     checkBudget();
     if (out_.errors.empty()) {
@@ -849,6 +851,46 @@ void Parser::parseOutputs(const toml::table& root) {
         } else {
             board_.outputs.mjpeg = *v;
         }
+    }
+}
+
+void Parser::parseRuntime(const toml::table& root) {
+    const toml::table* t = subTable(root, "runtime");
+    if (t == nullptr) {
+        return;
+    }
+    board_.runtime.where = loc(t->source());
+    rejectUnknownKeys(*t, "runtime", {"realtime_priority", "cpus"});
+    if (auto v =
+            getInteger(*t, "realtime_priority", "runtime", false,
+                       "a SCHED_FIFO priority, 1 to 99, or 0 for the normal scheduler", 0, 99)) {
+        board_.runtime.realtimePriority = static_cast<int>(*v);
+    }
+    const toml::node* n = t->get("cpus");
+    if (n == nullptr) {
+        return;
+    }
+    const toml::array* a = n->as_array();
+    const std::string expected = "an array of CPU numbers, e.g. [2, 3]";
+    if (a == nullptr || a->empty()) {
+        error(n->source(), "runtime.cpus",
+              fmt::format("expected {}, found {}", expected,
+                          a == nullptr ? typeName(*n) : std::string_view("an empty array")));
+        return;
+    }
+    for (const auto& e : *a) {
+        if (!e.is_integer() || e.as_integer()->get() < 0 || e.as_integer()->get() > 1023) {
+            error(e.source(), "runtime.cpus",
+                  fmt::format("expected {}, CPU numbers 0 to 1023", expected));
+            return;
+        }
+        const int cpu = static_cast<int>(e.as_integer()->get());
+        if (std::find(board_.runtime.cpus.begin(), board_.runtime.cpus.end(), cpu) !=
+            board_.runtime.cpus.end()) {
+            error(e.source(), "runtime.cpus", fmt::format("CPU {} is listed twice", cpu));
+            return;
+        }
+        board_.runtime.cpus.push_back(cpu);
     }
 }
 

@@ -44,6 +44,8 @@ struct RunOptions {
     std::string board = "sim-suit";
     double durationS = 0;
     std::string out;
+    std::string record;  // the recording's path; empty: a timestamped name in `out`
+    int realtime = -1;   // SCHED_FIFO priority of the capture threads; -1: the board's
     double speed = 1.0;
     bool noRecord = false;
     std::string bvh;  // virtual suit: the motion; default: the shipped walking clip
@@ -214,17 +216,27 @@ int run(const RunOptions& o) {
     }
 
     Capture capture(*suit, *clock);
+    ThreadPolicy threads = ThreadPolicy::fromBoard(b.runtime);
+    if (o.realtime >= 0) {
+        threads.realtimePriority = o.realtime;
+    }
+    capture.setThreadPolicy(threads);
     std::unique_ptr<RecorderStage> recorder;
     fs::path recordingPath;
     if (!o.noRecord) {
-        const fs::path dir = o.out.empty() ? fs::path(b.outputs.recordings) : fs::path(o.out);
+        const fs::path dir =
+            !o.record.empty() ? fs::path(o.record).parent_path()
+                              : (o.out.empty() ? fs::path(b.outputs.recordings) : fs::path(o.out));
         std::error_code ec;
-        fs::create_directories(dir, ec);
+        if (!dir.empty()) {
+            fs::create_directories(dir, ec);
+        }
         if (ec) {
             fmt::print(stderr, "caphub run: cannot create '{}': {}\n", dir.string(), ec.message());
             return kExitRuntime;
         }
-        recordingPath = dir / fmt::format("{}-{}.cap", timestampName(), b.name);
+        recordingPath = !o.record.empty() ? fs::path(o.record)
+                                          : dir / fmt::format("{}-{}.cap", timestampName(), b.name);
         std::ifstream in(b.path);
         std::stringstream text;
         text << in.rdbuf();
@@ -333,11 +345,18 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-d,--duration", o->durationS, "Seconds to capture (0: until Ctrl-C)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
-    cmd->add_option("-o,--out", o->out, "Folder for the recording (default: the board's outputs)");
+    cmd->add_option("-o,--out", o->out,
+                    "Folder for a timestamped recording (default: the board's outputs)");
+    auto* record = cmd->add_option("-r,--record", o->record,
+                                   "The recording's file (.cap); an existing file is not replaced");
+    cmd->add_option("--realtime", o->realtime,
+                    "SCHED_FIFO priority of the capture threads, 1-99 (0: normal scheduling; "
+                    "default: the board's [runtime])")
+        ->check(CLI::Range(0, 99));
     cmd->add_option("--speed", o->speed, "Virtual suit only: simulated seconds per real second")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
-    cmd->add_flag("--no-record", o->noRecord, "Do not write a recording");
+    cmd->add_flag("--no-record", o->noRecord, "Do not write a recording")->excludes(record);
     cmd->add_option("--bvh", o->bvh,
                     "Virtual suit: the motion (BVH); default: the shipped walking clip");
     cmd->add_option("--map", o->map, "Virtual suit: joint-name map (TOML) for the BVH file");

@@ -119,11 +119,12 @@ void BusWorker::runOnce() {
     }
 }
 
-void BusWorker::start() {
+void BusWorker::start(const ThreadPolicy& policy) {
     if (running_.exchange(true)) {
         return;
     }
-    thread_ = std::thread([this] {
+    thread_ = std::thread([this, policy] {
+        (void)applyToThisThread(policy, "caphub-bus");
         while (running_.load(std::memory_order_relaxed)) {
             runOnce();
         }

@@ -11,6 +11,7 @@
 
 #include "board/hardware.h"
 #include "firmware/runtime/spsc_ring.h"
+#include "firmware/runtime/thread_policy.h"
 #include "hal/imu_sample.h"
 
 namespace caphub::firmware {
@@ -58,7 +59,8 @@ public:
     // those edges call for. Runs on the worker thread, or directly from a test.
     void runOnce();
 
-    void start();  // a thread that runs runOnce() until stop()
+    // A thread that runs runOnce() until stop(), with the given scheduling.
+    void start(const ThreadPolicy& policy = {});
     void stop();
 
     SampleRing& samples() { return samples_; }

@@ -28,9 +28,12 @@ void Capture::start(Duration duration) {
     started_ = clock_.now();
     const Timestamp end = duration.count() > 0 ? started_ + duration : Timestamp::max();
     for (auto& w : workers_) {
-        w->start();
+        w->start(threadPolicy_);
     }
-    pipeline_ = std::thread([this, end] { pipelineLoop(end); });
+    pipeline_ = std::thread([this, end] {
+        (void)applyToThisThread(threadPolicy_.lowered(1), "caphub-pipeline");
+        pipelineLoop(end);
+    });
 }
 
 int Capture::drain(Timestamp now) {

@@ -48,6 +48,9 @@ public:
     ~Capture();
 
     void addStage(PipelineStage& stage) { stages_.push_back(&stage); }
+    // Scheduling of the capture threads (before start()): the bus workers get the policy, the
+    // pipeline one priority level below.
+    void setThreadPolicy(const ThreadPolicy& policy) { threadPolicy_ = policy; }
 
     // Starts the workers and the pipeline thread; runs until requestStop() or `duration` of
     // capture-clock time has passed (zero: until requested).
@@ -70,6 +73,7 @@ private:
     Clock& clock_;
     std::vector<std::unique_ptr<BusWorker>> workers_;
     std::vector<PipelineStage*> stages_;
+    ThreadPolicy threadPolicy_;
     std::atomic<bool> stopRequested_{false};
     std::thread pipeline_;
     Timestamp started_{};

@@ -320,6 +320,37 @@ TEST(BoardLoader, ReportsEveryMistakeNotJustTheFirst) {
     }
 }
 
+TEST(BoardLoader, ReadsTheRuntimeSchedulingOfTheCaptureThreads) {
+    const auto r = load(kHeader + sensor("s1", "pelvis", 0, 0x68) +
+                        "\n[runtime]\nrealtime_priority = 40\ncpus = [1, 3]\n");
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_EQ(r.board->runtime.realtimePriority, 40);
+    EXPECT_EQ(r.board->runtime.cpus, (std::vector<int>{1, 3}));
+}
+
+TEST(BoardLoader, WithoutRuntimeTheCaptureThreadsScheduleNormally) {
+    const auto r = load(kHeader + sensor("s1", "pelvis", 0, 0x68));
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_EQ(r.board->runtime.realtimePriority, 0);
+    EXPECT_TRUE(r.board->runtime.cpus.empty());
+}
+
+TEST(BoardLoader, ReportsARealtimePriorityOutOfRange) {
+    const std::string text =
+        kHeader + sensor("s1", "pelvis", 0, 0x68) + "\n[runtime]\nrealtime_priority = 120\n";
+    expectOneError(load(text), "runtime.realtime_priority", lineOf(text, "realtime_priority"),
+                   "out of range");
+}
+
+TEST(BoardLoader, ReportsACpuListedTwiceAndANegativeCpu) {
+    const std::string twice =
+        kHeader + sensor("s1", "pelvis", 0, 0x68) + "\n[runtime]\ncpus = [2, 2]\n";
+    expectOneError(load(twice), "runtime.cpus", lineOf(twice, "cpus"), "CPU 2 is listed twice");
+    const std::string negative =
+        kHeader + sensor("s1", "pelvis", 0, 0x68) + "\n[runtime]\ncpus = [0, -1]\n";
+    expectOneError(load(negative), "runtime.cpus", lineOf(negative, "cpus"), "CPU numbers");
+}
+
 TEST(BoardLoader, ReportsAFileItCannotRead) {
     const auto r = loadBoardFile("/nonexistent/board.toml");
     ASSERT_EQ(r.errors.size(), 1u);
