@@ -1,9 +1,11 @@
 // caphub export run as a person would: the summary line, the exit codes, the messages for a
 // recording without poses, a damaged recording and bad options, and progress on a terminal.
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <string>
 
@@ -12,6 +14,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "board/sim/bvh.h"
+#include "firmware/recording/reader.h"
+#include "fusion/body/skeleton.h"
+#include "hal/core/quaternion.h"
 #include "tests/firmware/cli_run.h"
 #include "tests/firmware/export_fixture.h"
 
@@ -36,6 +42,71 @@ const std::string& walk() {
         return p;
     }();
     return path;
+}
+
+// The whole product path: `caphub run` captures the virtual suit (chip models, drivers, workers,
+// filters, body solver) into a recording, `caphub export` writes BVH, the project's BVH reader
+// reads it back, and every joint of every frame is the recording's pose within 0.01 deg.
+TEST(ExportCli, ACaptureOfTheVirtualSuitRoundTripsThroughBvhWithinAHundredthOfADegree) {
+    const std::string rec = temp("capture.cap");
+    const CliRun run = caphub(
+        "run --board sim-suit --duration 3 --pose-rate 50 "
+        "--no-preview --record " +
+        rec + " --status-file " + temp("status.json"));
+    ASSERT_EQ(run.exitCode, 0) << run.output;
+    ASSERT_THAT(run.output, HasSubstr("recording: " + rec));
+
+    std::vector<std::vector<Eigen::Quaternionf>> poses;
+    std::vector<Eigen::Vector3f> roots;
+    {
+        auto reader = caphub::firmware::RecordingReader::open(rec);
+        ASSERT_TRUE(reader.ok()) << reader.error().message;
+        caphub::firmware::RecordView v;
+        while ((*reader)->next(v) == 1) {
+            Eigen::Vector3f root;
+            std::vector<Eigen::Quaternionf> joints;
+            if (v.type == caphub::firmware::cap::RecordType::Pose &&
+                caphub::firmware::decodePose(v, root, joints)) {
+                poses.push_back(joints);
+                roots.push_back(root);
+            }
+        }
+        EXPECT_TRUE((*reader)->damage().empty());
+    }
+    ASSERT_GT(poses.size(), 100u);  // 3 s at 50 Hz, less the first sample's wait
+
+    const std::string out = temp("capture.bvh");
+    const CliRun ex = caphub("export " + rec + " --format bvh -o " + out);
+    ASSERT_EQ(ex.exitCode, 0) << ex.output;
+    auto clip = caphub::board::sim::loadBvh(out);
+    ASSERT_TRUE(clip.ok()) << clip.error().message;
+    // Poses are on a fixed grid of the pose rate, so the export at that rate has one frame each.
+    ASSERT_EQ(clip->frameCount, static_cast<int>(poses.size()));
+    const auto& names = caphub::body::joints();
+    double worstDeg = 0;
+    double worstRootM = 0;
+    for (int f = 0; f < clip->frameCount; ++f) {
+        for (int seg = 0; seg < caphub::body::kSegmentCount; ++seg) {
+            const int j = clip->findJoint(names[static_cast<std::size_t>(seg)].name);
+            ASSERT_GE(j, 0);
+            caphub::Vec3d t;
+            caphub::Quatd q;
+            clip->localPose(j, clip->frame(f), t, q);
+            const caphub::Quatd recorded =
+                poses[static_cast<std::size_t>(f)][static_cast<std::size_t>(seg)].cast<double>();
+            worstDeg =
+                std::max(worstDeg, caphub::angleBetween(q, recorded.normalized()) * 180.0 / M_PI);
+            if (seg == 0) {
+                worstRootM = std::max(
+                    worstRootM, (t - roots[static_cast<std::size_t>(f)].cast<double>()).norm());
+            }
+        }
+    }
+    EXPECT_LT(worstDeg, 0.01);  // the bound
+    // 6 decimals of a metre in the text: 0.5 um per axis, plus float rounding of the recording.
+    EXPECT_LT(worstRootM, 2e-6);
+    std::cout << "capture -> BVH round trip: " << poses.size() << " poses, worst joint error "
+              << worstDeg << " deg, root " << worstRootM << " m\n";
 }
 
 TEST(ExportCli, PrintsAOneLineSummaryWithFramesDurationAndSize) {
