@@ -12,6 +12,7 @@
 #include "firmware/recording/reader.h"
 #include "fusion/body/kinematics.h"
 #include "render/renderer.h"
+#include "render/skin_fit.h"
 #include "render/skinning.h"
 
 namespace caphub::firmware {
@@ -54,7 +55,13 @@ int replay(const ReplayOptions& o) {
     if (sinks.liveCount() == 0) {
         return kExitRuntime;
     }
-    auto skin = render::loadDefaultSkin();
+    auto defaultSkin = render::loadDefaultSkin();
+    if (!defaultSkin) {
+        fmt::print(stderr, "caphub replay: {}\n", defaultSkin.error().message);
+        return kExitRuntime;
+    }
+    // The recording's subject (the dimensions its poses were solved with).
+    auto skin = render::fitSkinToSubject(*defaultSkin, track->subject);
     if (!skin) {
         fmt::print(stderr, "caphub replay: {}\n", skin.error().message);
         return kExitRuntime;

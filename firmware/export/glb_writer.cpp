@@ -8,6 +8,7 @@
 
 #include "firmware/export/writers.h"
 #include "render/skin.h"
+#include "render/skin_fit.h"
 
 namespace caphub::firmware::exporter {
 
@@ -104,7 +105,13 @@ Result<void> writeGlb(const PoseTrack& track, const JointNames& names, const std
     if (!loaded) {
         return Error{loaded.error().code, "the default mesh: " + loaded.error().message};
     }
-    const render::Skin& skin = *loaded;
+    // Fitted to the recording's subject, so that the mesh's joints are the skeleton's (those of
+    // the BVH export too).
+    auto fitted = render::fitSkinToSubject(*loaded, track.subject);
+    if (!fitted) {
+        return Error{fitted.error().code, "the default mesh: " + fitted.error().message};
+    }
+    const render::Skin& skin = *fitted;
     const std::size_t nv = skin.vertexCount();
 
     tinygltf::Model model;

@@ -29,7 +29,9 @@ constexpr double kMaxRateHz = 10000;
 
 }  // namespace
 
-body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source) {
+body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source,
+                                        board::SubjectConfig& subject) {
+    subject = board::SubjectConfig{};
     body::Dimensions fallback = *body::dimensionsFromSubject(board::SubjectConfig{});
     std::string boardText;
     try {
@@ -61,6 +63,7 @@ body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::st
     }
     source = fmt::format("subject of board '{}' ({} m)", loaded.board->name,
                          loaded.board->subject.heightM);
+    subject = loaded.board->subject;
     return *dims;
 }
 
@@ -104,7 +107,8 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
     }
 
     PoseTrack track;
-    track.dimensions = dimensionsFromMetadata(reader.metadata(), track.subjectSource);
+    track.dimensions =
+        dimensionsFromMetadata(reader.metadata(), track.subjectSource, track.subject);
 
     std::vector<RawPose> raw;
     RecordView v;

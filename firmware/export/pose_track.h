@@ -33,9 +33,10 @@ struct TrackOptions {
 struct PoseTrack {
     std::vector<PoseFrame> frames;  // at t = frames[0].tS + k / rateHz
     double rateHz = 0;
-    double recordedRateHz = 0;  // the pose records' rate (from the median interval)
-    body::Dimensions dimensions;
-    std::string subjectSource;  // where the dimensions came from, for people
+    double recordedRateHz = 0;     // the pose records' rate (from the median interval)
+    board::SubjectConfig subject;  // the recording's board's, or the default subject
+    body::Dimensions dimensions;   // the subject's
+    std::string subjectSource;     // where the subject came from, for people
     // What the reading met.
     std::uint64_t poseRecords = 0;      // valid pose records read
     std::uint64_t malformedPoses = 0;   // a valid record whose pose could not be used
@@ -49,9 +50,10 @@ struct PoseTrack {
 // Progress while reading, as a fraction of the file in [0, 1].
 using ProgressFn = std::function<void(double)>;
 
-// The subject's dimensions from a recording's metadata ([board] text); the default subject
-// (1.75 m) when the metadata has no usable board file, with the reason in `source`.
-body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source);
+// The subject and its dimensions from a recording's metadata ([board] text); the default
+// subject (1.75 m) when the metadata has no usable board file, with the reason in `source`.
+body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source,
+                                        board::SubjectConfig& subject);
 
 // Reads every pose record. Errors: a read error, no usable pose record ("no pose records: was
 // the body stage on?"), a bad window or rate, or no frame in the window.

@@ -1,6 +1,7 @@
 #include "firmware/runtime/preview_stage.h"
 
 #include "hal/core/log.h"
+#include "render/skin_fit.h"
 #include "render/skinning.h"
 
 namespace caphub::firmware {
@@ -12,6 +13,21 @@ PreviewStage::PreviewStage(const board::Board& board, const BodyStage& body, ren
       sinks_(std::move(sinks)),
       options_(options),
       period_(periodFromHz(options.fps)) {
+    // The skin is fitted to the board's subject, so that its joints sit on the body's skeleton;
+    // a subject the body stage cannot use makes it fall back to the default subject, and so
+    // does this.
+    auto fitted = render::fitSkinToSubject(skin_, board.subject);
+    if (!fitted) {
+        log::logger(log::Category::Render)
+            .warn("preview skin fitted to the default subject: {}", fitted.error().message);
+        fitted = render::fitSkinToSubject(skin_, board::SubjectConfig{});
+    }
+    if (fitted) {
+        skin_ = std::move(*fitted);
+    } else {
+        log::logger(log::Category::Render)
+            .warn("preview skin left unfitted: {}", fitted.error().message);
+    }
     sensors_.fill(render::SensorState::None);
     for (const auto& s : board.sensors) {
         segmentOf_.push_back(static_cast<int>(s.segment));

@@ -28,7 +28,8 @@ public:
         render::RenderOptions render;
     };
 
-    // body must be added to the capture before this stage.
+    // body must be added to the capture before this stage. The skin is fitted to
+    // board.subject (render/skin_fit.h).
     PreviewStage(const board::Board& board, const BodyStage& body, render::Skin skin,
                  render::SinkSet sinks, const Options& options);
     ~PreviewStage() override;
