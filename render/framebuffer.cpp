@@ -2,17 +2,49 @@
 
 #include <algorithm>
 #include <cstring>
+#include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 #include <fcntl.h>
-#include <fmt/format.h>
 #include <linux/fb.h>
 #include <sys/ioctl.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 namespace caphub::render {
+
+namespace {
+
+// A message with each "{}" replaced by the next argument: the sink formats its messages without
+// fmt, so that the static kernel-test guest links nothing but the C and C++ libraries.
+std::string toText(const std::string& s) {
+    return s;
+}
+template <typename T>
+std::string toText(T v) {
+    return std::to_string(v);
+}
+
+template <typename... Args>
+std::string text(std::string_view pattern, const Args&... args) {
+    const std::string values[] = {toText(args)..., std::string()};
+    std::string out;
+    std::size_t next = 0;
+    for (std::size_t i = 0; i < pattern.size(); ++i) {
+        if (pattern[i] == '{' && i + 1 < pattern.size() && pattern[i + 1] == '}' &&
+            next < sizeof...(Args)) {
+            out += values[next++];
+            ++i;
+        } else {
+            out += pattern[i];
+        }
+    }
+    return out;
+}
+
+}  // namespace
 
 FbMode rgb565Mode(int width, int height) {
     return FbMode{width, height, 16, width * 2, {11, 5}, {5, 6}, {0, 5}};
@@ -24,23 +56,23 @@ FbMode xrgb8888Mode(int width, int height) {
 
 Result<void> validateMode(const FbMode& m) {
     if (m.bitsPerPixel != 16 && m.bitsPerPixel != 24 && m.bitsPerPixel != 32) {
-        return Error{
-            EINVAL, fmt::format("framebuffer depth {} bpp: expected 16, 24 or 32", m.bitsPerPixel)};
+        return Error{EINVAL,
+                     text("framebuffer depth {} bpp: expected 16, 24 or 32", m.bitsPerPixel)};
     }
     if (m.width <= 0 || m.height <= 0 || m.width > 8192 || m.height > 8192) {
-        return Error{EINVAL, fmt::format("framebuffer size {}x{}: expected 1 to 8192 each", m.width,
-                                         m.height)};
+        return Error{EINVAL,
+                     text("framebuffer size {}x{}: expected 1 to 8192 each", m.width, m.height)};
     }
     if (m.lineLengthBytes < m.width * m.bitsPerPixel / 8) {
-        return Error{EINVAL, fmt::format("framebuffer line of {} bytes: expected at least {}",
-                                         m.lineLengthBytes, m.width * m.bitsPerPixel / 8)};
+        return Error{EINVAL, text("framebuffer line of {} bytes: expected at least {}",
+                                  m.lineLengthBytes, m.width * m.bitsPerPixel / 8)};
     }
     for (const FbChannel* c : {&m.red, &m.green, &m.blue}) {
         if (c->length < 1 || c->length > 8 || c->offset < 0 ||
             c->offset + c->length > m.bitsPerPixel) {
-            return Error{EINVAL, fmt::format("framebuffer channel at bit {} of {} bits: expected "
-                                             "1 to 8 bits inside a {}-bit pixel",
-                                             c->offset, c->length, m.bitsPerPixel)};
+            return Error{EINVAL, text("framebuffer channel at bit {} of {} bits: expected "
+                                      "1 to 8 bits inside a {}-bit pixel",
+                                      c->offset, c->length, m.bitsPerPixel)};
         }
     }
     return {};
@@ -93,25 +125,25 @@ Result<FramebufferSink> FramebufferSink::openDevice(const std::filesystem::path&
                                                     int requestBpp) {
     const int fd = ::open(device.c_str(), O_RDWR | O_CLOEXEC);
     if (fd < 0) {
-        return errnoError(-errno, fmt::format("open framebuffer '{}'", device.string()));
+        return errnoError(-errno, text("open framebuffer '{}'", device.string()));
     }
     FramebufferSink sink;
     sink.fd_ = fd;
     sink.name_ = device.string();
     fb_var_screeninfo var{};
     if (ioctl(fd, FBIOGET_VSCREENINFO, &var) != 0) {
-        return errnoError(-errno, fmt::format("FBIOGET_VSCREENINFO on '{}'", device.string()));
+        return errnoError(-errno, text("FBIOGET_VSCREENINFO on '{}'", device.string()));
     }
     if (requestBpp != 0 && static_cast<int>(var.bits_per_pixel) != requestBpp) {
         var.bits_per_pixel = static_cast<std::uint32_t>(requestBpp);
         if (ioctl(fd, FBIOPUT_VSCREENINFO, &var) != 0 || ioctl(fd, FBIOGET_VSCREENINFO, &var)) {
-            return errnoError(-errno, fmt::format("FBIOPUT_VSCREENINFO {} bpp on '{}'", requestBpp,
-                                                  device.string()));
+            return errnoError(
+                -errno, text("FBIOPUT_VSCREENINFO {} bpp on '{}'", requestBpp, device.string()));
         }
     }
     fb_fix_screeninfo fix{};
     if (ioctl(fd, FBIOGET_FSCREENINFO, &fix) != 0) {
-        return errnoError(-errno, fmt::format("FBIOGET_FSCREENINFO on '{}'", device.string()));
+        return errnoError(-errno, text("FBIOGET_FSCREENINFO on '{}'", device.string()));
     }
     FbMode m;
     m.width = static_cast<int>(var.xres);
@@ -122,24 +154,23 @@ Result<FramebufferSink> FramebufferSink::openDevice(const std::filesystem::path&
     m.green = {static_cast<int>(var.green.offset), static_cast<int>(var.green.length)};
     m.blue = {static_cast<int>(var.blue.offset), static_cast<int>(var.blue.length)};
     if (fix.type != FB_TYPE_PACKED_PIXELS || fix.visual != FB_VISUAL_TRUECOLOR) {
-        return Error{EINVAL, fmt::format("framebuffer '{}': type {} visual {}: expected packed "
-                                         "true-colour pixels",
-                                         device.string(), fix.type, fix.visual)};
+        return Error{EINVAL, text("framebuffer '{}': type {} visual {}: expected packed "
+                                  "true-colour pixels",
+                                  device.string(), fix.type, fix.visual)};
     }
     if (auto ok = validateMode(m); !ok) {
-        return Error{EINVAL,
-                     fmt::format("framebuffer '{}': {}", device.string(), ok.error().message)};
+        return Error{EINVAL, text("framebuffer '{}': {}", device.string(), ok.error().message)};
     }
     // The visible page starts at the y offset the console panned to.
     const std::size_t bytes = static_cast<std::size_t>(fix.smem_len);
     const std::size_t need = static_cast<std::size_t>(var.yoffset + var.yres) * fix.line_length;
     if (bytes < need) {
-        return Error{EINVAL, fmt::format("framebuffer '{}': {} bytes of memory for {} needed",
-                                         device.string(), bytes, need)};
+        return Error{EINVAL, text("framebuffer '{}': {} bytes of memory for {} needed",
+                                  device.string(), bytes, need)};
     }
     void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
     if (p == MAP_FAILED) {
-        return errnoError(-errno, fmt::format("mmap framebuffer '{}'", device.string()));
+        return errnoError(-errno, text("mmap framebuffer '{}'", device.string()));
     }
     sink.map_ = static_cast<std::uint8_t*>(p);
     sink.mapBytes_ = bytes;
@@ -153,23 +184,22 @@ Result<FramebufferSink> FramebufferSink::openDevice(const std::filesystem::path&
 Result<FramebufferSink> FramebufferSink::openFile(const std::filesystem::path& file,
                                                   const FbMode& mode) {
     if (auto ok = validateMode(mode); !ok) {
-        return Error{EINVAL,
-                     fmt::format("framebuffer file '{}': {}", file.string(), ok.error().message)};
+        return Error{EINVAL, text("framebuffer file '{}': {}", file.string(), ok.error().message)};
     }
     const int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
-        return errnoError(-errno, fmt::format("open framebuffer file '{}'", file.string()));
+        return errnoError(-errno, text("open framebuffer file '{}'", file.string()));
     }
     FramebufferSink sink;
     sink.fd_ = fd;
     sink.name_ = file.string();
     const std::size_t bytes = static_cast<std::size_t>(mode.height) * mode.lineLengthBytes;
     if (ftruncate(fd, static_cast<off_t>(bytes)) != 0) {
-        return errnoError(-errno, fmt::format("resize framebuffer file '{}'", file.string()));
+        return errnoError(-errno, text("resize framebuffer file '{}'", file.string()));
     }
     void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
     if (p == MAP_FAILED) {
-        return errnoError(-errno, fmt::format("mmap framebuffer file '{}'", file.string()));
+        return errnoError(-errno, text("mmap framebuffer file '{}'", file.string()));
     }
     sink.map_ = static_cast<std::uint8_t*>(p);
     sink.mapBytes_ = bytes;
@@ -211,13 +241,13 @@ void FramebufferSink::release() {
 
 Result<void> FramebufferSink::write(const Image& image) {
     if (!map_) {
-        return Error{EBADF, fmt::format("framebuffer '{}' is not open", name_)};
+        return Error{EBADF, text("framebuffer '{}' is not open", name_)};
     }
     if (image.width <= 0 || image.height <= 0 ||
         image.rgb.size() != static_cast<std::size_t>(image.width) * image.height * 3) {
-        return Error{EINVAL, fmt::format("framebuffer '{}': frame of {}x{} with {} bytes: "
-                                         "expected width * height * 3",
-                                         name_, image.width, image.height, image.rgb.size())};
+        return Error{EINVAL, text("framebuffer '{}': frame of {}x{} with {} bytes: "
+                                  "expected width * height * 3",
+                                  name_, image.width, image.height, image.rgb.size())};
     }
     convertFrame(image, mode_, map_ + pageOffset_);
     return {};

@@ -1,8 +1,9 @@
 // The guest program of the kernel-level test: runs the project's Linux I2C backend (LinuxI2cBus)
 // on a real kernel's i2c-dev against i2c-stub's emulated ICM-20948, LSM6DSOX, LIS3MDL and
-// TCA9548A, and prints every check line by line. Exit status 0 only when every check passed.
+// TCA9548A, then the render library's framebuffer sink on vfb's /dev/fbN (guest_fb_checks.cpp),
+// and prints every check line by line. Exit status 0 only when every check passed.
 //
-//   caphub-guest /dev/i2c-N
+//   caphub-guest /dev/i2c-N /dev/fbN
 //
 // i2c-stub is not a chip model: it is 256 16-bit registers per address that byte and I2C-block
 // transfers read and write through their low byte. So this program first writes what each chip
@@ -42,6 +43,8 @@ extern "C" {
 #include "hal/linux/linux_i2c_bus.h"
 #include "hal/linux/unique_fd.h"
 #include "hal/tca9548a.h"
+#include "tests/kernel/guest_checks.h"
+#include "tests/kernel/guest_fb_checks.h"
 
 namespace {
 
@@ -71,39 +74,7 @@ std::string hexBytes(std::span<const std::uint8_t> bytes) {
     return out;
 }
 
-// Counts and prints checks: "  ok    what" or "  FAIL  what: detail".
-class Checks {
-public:
-    bool expect(bool ok, const std::string& what, const std::string& detail = {}) {
-        ++count_;
-        if (!ok) {
-            ++failures_;
-        }
-        // The detail explains a failure; a pass needs only what was checked.
-        const bool showDetail = !ok && !detail.empty();
-        std::printf("  %-5s %s%s%s\n", ok ? "ok" : "FAIL", what.c_str(), showDetail ? ": " : "",
-                    showDetail ? detail.c_str() : "");
-        std::fflush(stdout);
-        return ok;
-    }
-
-    // A bus operation's 0/-errno result.
-    bool expectOk(int result, const std::string& what) {
-        return expect(result == 0, what, result == 0 ? "" : caphub::errnoText(result));
-    }
-
-    static void info(const std::string& line) {
-        std::printf("        %s\n", line.c_str());
-        std::fflush(stdout);
-    }
-
-    int count() const { return count_; }
-    int failures() const { return failures_; }
-
-private:
-    int count_ = 0;
-    int failures_ = 0;
-};
+using caphub::kernel_test::Checks;
 
 struct Context {
     std::string path;
@@ -880,8 +851,8 @@ constexpr std::array<Section, 12> kSections = {{
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc != 2) {
-        std::fprintf(stderr, "usage: %s /dev/i2c-N\n", argv[0]);
+    if (argc != 3) {
+        std::fprintf(stderr, "usage: %s /dev/i2c-N /dev/fbN\n", argv[0]);
         return 2;
     }
     Context ctx;
@@ -890,10 +861,12 @@ int main(int argc, char** argv) {
     for (const auto& section : kSections) {
         std::printf("== %s\n", section.title);
         if (!section.run(ctx)) {
-            std::printf("  (stopping: later sections need this one)\n");
+            std::printf("  (stopping: later I2C sections need this one)\n");
             break;
         }
     }
+    // The framebuffer needs nothing from the I2C sections: it runs whatever they found.
+    caphub::kernel_test::checkFramebuffer(argv[2], ctx.checks);
     std::printf("guest: %d checks, %d failed\n", ctx.checks.count(), ctx.checks.failures());
     if (ctx.bus) {
         const auto counters = caphub::hal::snapshot(ctx.bus->counters());

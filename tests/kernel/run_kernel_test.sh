@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Kernel-level test: boots Debian's own kernel under qemu (TCG) with a busybox initramfs that
-# loads i2c-stub and i2c-dev, then runs a static guest program built from the project's hal
-# against /dev/i2c-N. The run is judged by the marker the guest's /init prints.
+# loads i2c-stub, i2c-dev and vfb, then runs a static guest program built from the project's hal
+# and framebuffer sink against /dev/i2c-N and /dev/fbN. The run is judged by the marker the
+# guest's /init prints.
 #
 #   run_kernel_test.sh GUEST_BINARY WORK_DIR
 #
@@ -137,7 +138,8 @@ fi
 
 # --- 4. The initramfs: busybox, the modules in load order, the guest, /init.
 modules=()
-for module in i2c-dev i2c-stub; do
+readonly kModules=(i2c-dev i2c-stub vfb)
+for module in "${kModules[@]}"; do
     deps=$(modprobe -d "$root" -S "$release" --show-depends "$module" 2>&1) ||
         die "modprobe --show-depends $module: $deps"
     while read -r verb path _; do
@@ -147,12 +149,13 @@ for module in i2c-dev i2c-stub; do
         [ $already -eq 1 ] || modules+=("$path")
     done <<<"$deps"
 done
-[ ${#modules[@]} -gt 0 ] || die "no modules found for i2c-dev and i2c-stub in $release"
+[ ${#modules[@]} -gt 0 ] || die "no modules found for ${kModules[*]} in $release"
 
 # The part that depends only on the kernel and busybox (a few hundred applet symlinks, ~2 s of
-# forks) is kept between runs; the guest and /init are copied in every run.
+# forks) is kept between runs; the guest and /init are copied in every run. The stamp names the
+# module list, so that adding a module rebuilds it.
 stage="$work/initramfs"
-baseStamp="$stage/.base-$release"
+baseStamp="$stage/.base-$release-$(echo "${kModules[*]}" | cksum | cut -d' ' -f1)"
 if [ ! -f "$baseStamp" ] || [ "$busybox" -nt "$baseStamp" ]; then
     rm -rf "$stage"
     mkdir -p "$stage"/{bin,dev,proc,sys,etc,lib/modules/"$release"}
