@@ -28,21 +28,31 @@ const Pose& BodySolver::solve(const SensorFrame& frame, double dtS,
             r.setZero();
         }
     } else {
-        body::jointRates(previous_, pose_, dtS, rates_);
+        body::jointRates(previousLocal_, pose_.qLocal, dtS, rates_);
     }
-    footState(d, pose_, rates_, feet_);
+    // Each chain's Jacobian once, with the root at the origin: its columns hold only
+    // differences of positions, so moving the root later shifts just the end point. The feet's
+    // contact velocities come from the same Jacobians as their twists.
+    for (int e = 0; e < kEndEffectorCount; ++e) {
+        const auto u = static_cast<std::size_t>(e);
+        spatialJacobian(skeleton_, pose_, static_cast<EndEffector>(e), jacobians_[u]);
+        twists_[u] = endEffectorTwist(jacobians_[u], Vec3d::Zero(), rates_);
+    }
+    footState(d, pose_, jacobians_[static_cast<std::size_t>(EndEffector::LFoot)],
+              jacobians_[static_cast<std::size_t>(EndEffector::RFoot)], rates_, feet_);
     if (first_) {
         root_.reset(d, pose_, resetAtM_.x(), resetAtM_.z());
         first_ = false;
     } else {
         root_.update(d, pose_, feet_, dtS, rootSpecificForceMps2);
     }
+    const Vec3d& rootM = pose_.positionM[0];
     for (int e = 0; e < kEndEffectorCount; ++e) {
         const auto u = static_cast<std::size_t>(e);
-        spatialJacobian(skeleton_, pose_, static_cast<EndEffector>(e), jacobians_[u]);
-        twists_[u] = endEffectorTwist(jacobians_[u], root_.rootVelocityMps(), rates_);
+        jacobians_[u].pointM += rootM;
+        twists_[u].head<3>() += root_.rootVelocityMps();
     }
-    previous_ = pose_;
+    previousLocal_ = pose_.qLocal;
     return pose_;
 }
 

@@ -47,7 +47,7 @@ private:
     PoseSolver poseSolver_;
     RootTracker root_;
     Pose pose_;
-    Pose previous_;
+    std::array<Quatd, kSegmentCount> previousLocal_;  // joint rotations of the last frame
     JointRates rates_{};
     JointLimitReport limits_;
     FootState feet_;

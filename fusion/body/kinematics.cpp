@@ -1,5 +1,7 @@
 #include "fusion/body/kinematics.h"
 
+#include <cmath>
+
 namespace caphub::body {
 
 void worldFromLocal(Pose& pose) {
@@ -30,13 +32,34 @@ void forwardKinematics(const Dimensions& d, const Vec3d& rootM, Pose& pose) {
     }
 }
 
-void jointRates(const Pose& previous, const Pose& current, double dtS, JointRates& out) {
-    const double inv = dtS > 0 ? 1.0 / dtS : 0.0;
-    for (int i = 0; i < kSegmentCount; ++i) {
-        const auto u = static_cast<std::size_t>(i);
-        // q_now = q_prev exp(w dt): the rate in the segment's own (body) frame.
-        out[u] = toRotationVector<double>(previous.qLocal[u].conjugate() * current.qLocal[u]) * inv;
+Vec3d logUnit(const Quatd& q) {
+    // q and -q are the same rotation: take the one with w >= 0 (angle in [0, pi]).
+    const double sign = q.w() < 0 ? -1.0 : 1.0;
+    const Vec3d v = q.vec() * sign;
+    const double w = q.w() * sign;
+    const double s = v.norm();
+    // angle / s = 2 atan(x) / s with x = s / w. For x < 0.1 the series
+    // 2/w (1 - x^2/3 + x^4/5 - x^6/7 + x^8/9) leaves out x^10/11 < 1e-11 relative.
+    if (s < 0.1 * w) {
+        const double x2 = (s / w) * (s / w);
+        const double series =
+            1.0 - x2 * (1.0 / 3 - x2 * (1.0 / 5 - x2 * (1.0 / 7 - x2 * (1.0 / 9))));
+        return v * (2.0 / w * series);
     }
+    return v * (2.0 * std::atan2(s, w) / s);
+}
+
+void jointRates(const std::array<Quatd, kSegmentCount>& previousLocal,
+                const std::array<Quatd, kSegmentCount>& currentLocal, double dtS, JointRates& out) {
+    const double inv = dtS > 0 ? 1.0 / dtS : 0.0;
+    for (std::size_t u = 0; u < previousLocal.size(); ++u) {
+        // q_now = q_prev exp(w dt): the rate in the segment's own (body) frame.
+        out[u] = logUnit(previousLocal[u].conjugate() * currentLocal[u]) * inv;
+    }
+}
+
+void jointRates(const Pose& previous, const Pose& current, double dtS, JointRates& out) {
+    jointRates(previous.qLocal, current.qLocal, dtS, out);
 }
 
 void spatialJacobian(const Pose& pose, int end, const Vec3d& pointLocalM, ChainJacobian& out) {
@@ -47,8 +70,11 @@ void spatialJacobian(const Pose& pose, int end, const Vec3d& pointLocalM, ChainJ
     }
     out.jointCount = n;
     out.pointM = pointOnSegment(pose, end, pointLocalM);
-    out.j.setZero();
     out.j.block<3, 3>(0, 0).setIdentity();
+    out.j.block<3, 3>(3, 0).setZero();
+    // Only the columns past the chain need clearing: every used column is written below.
+    const int used = 3 + 3 * n;
+    out.j.rightCols(kMaxJacobianColumns - used).setZero();
     for (int k = 0; k < n; ++k) {
         const int s = rev[static_cast<std::size_t>(n - 1 - k)];
         out.segments[static_cast<std::size_t>(k)] = s;
@@ -66,14 +92,16 @@ void spatialJacobian(const Pose& pose, int end, const Vec3d& pointLocalM, ChainJ
 
 Twist endEffectorTwist(const ChainJacobian& jac, const Vec3d& rootVelocityMps,
                        const JointRates& rates) {
-    Eigen::Matrix<double, kMaxJacobianColumns, 1> dtheta;
-    dtheta.setZero();
-    dtheta.segment<3>(0) = rootVelocityMps;
+    // J dtheta over the chain's columns only (the rest are zero): the root translation block
+    // is [I; 0].
+    Twist tw;
+    tw.head<3>() = rootVelocityMps;
+    tw.tail<3>().setZero();
     for (int k = 0; k < jac.jointCount; ++k) {
-        dtheta.segment<3>(3 + 3 * k) =
-            rates[static_cast<std::size_t>(jac.segments[static_cast<std::size_t>(k)])];
+        tw.noalias() += jac.j.block<6, 3>(0, 3 + 3 * k) *
+                        rates[static_cast<std::size_t>(jac.segments[static_cast<std::size_t>(k)])];
     }
-    return jac.j * dtheta;
+    return tw;
 }
 
 }  // namespace caphub::body

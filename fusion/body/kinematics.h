@@ -40,11 +40,19 @@ inline Vec3d pointOnSegment(const Pose& pose, int segment, const Vec3d& localM) 
     return pose.positionM[i] + pose.qWorld[i] * localM;
 }
 
+// The rotation vector of a unit quaternion (the logarithm map), for the per-frame paths: a
+// plain norm instead of stableNorm and, for angles below 11 deg (tan of the half angle < 0.1),
+// a series instead of atan2 (relative error < 1e-11). Agrees with toRotationVector of
+// hal/core/quaternion.h for unit quaternions.
+Vec3d logUnit(const Quatd& q);
+
 // Joint velocities: per segment, the angular velocity of the segment relative to its parent,
 // in the segment's own frame (rad/s); for the pelvis its angular velocity in the world, in the
 // pelvis frame. Computed from two consecutive poses.
 using JointRates = std::array<Vec3d, kSegmentCount>;
 void jointRates(const Pose& previous, const Pose& current, double dtS, JointRates& out);
+void jointRates(const std::array<Quatd, kSegmentCount>& previousLocal,
+                const std::array<Quatd, kSegmentCount>& currentLocal, double dtS, JointRates& out);
 
 // Columns: root translation (3), then 3 per joint along the chain from the pelvis.
 inline constexpr int kMaxChainJoints = 8;

@@ -90,8 +90,7 @@ void PoseSolver::solve(const SensorFrame& frame, Pose& pose, JointLimitReport* r
                 const Share& sh = shares_[u];
                 const Quatd& qa = pose.qWorld[static_cast<std::size_t>(sh.from)];
                 const Quatd rel = qa.conjugate() * pose.qWorld[static_cast<std::size_t>(sh.to)];
-                pose.qWorld[u] =
-                    qa * fromRotationVector<double>(toRotationVector(rel) * sh.fraction);
+                pose.qWorld[u] = qa * fromRotationVector<double>(logUnit(rel) * sh.fraction);
                 break;
             }
         }
@@ -121,7 +120,7 @@ void PoseSolver::solve(const SensorFrame& frame, Pose& pose, JointLimitReport* r
 }
 
 double applyJointLimits(const JointLimits& limits, Quatd& qLocal, bool clamp) {
-    const Vec3d rvDeg = toRotationVector(qLocal) * kRadToDeg;
+    const Vec3d rvDeg = logUnit(qLocal.normalized()) * kRadToDeg;
     const Vec3d clamped = rvDeg.cwiseMax(limits.minDeg).cwiseMin(limits.maxDeg);
     const double excess = (rvDeg - clamped).norm();
     if (clamp && excess > 0) {

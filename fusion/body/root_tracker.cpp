@@ -10,25 +10,14 @@ namespace {
 
 using S = Segment;
 
-// The lowest of one foot's three points (0-2 left, 3-5 right) in the given positions.
-int lowestPoint(const std::array<Vec3d, 6>& p, int foot) {
-    int best = 3 * foot;
-    for (int k = 3 * foot + 1; k < 3 * foot + 3; ++k) {
-        if (p[static_cast<std::size_t>(k)].y() < p[static_cast<std::size_t>(best)].y()) {
-            best = k;
-        }
-    }
-    return best;
-}
-
 }  // namespace
 
-void footState(const Dimensions& d, const Pose& pose, const JointRates& rates, FootState& out) {
+void footState(const Dimensions& d, const Pose& pose, const ChainJacobian& left,
+               const ChainJacobian& right, const JointRates& rates, FootState& out) {
     for (int foot = 0; foot < 2; ++foot) {
         const int seg = idx(foot == 0 ? S::LHindfoot : S::RHindfoot);
         const auto& pts = foot == 0 ? d.leftFootPointM : d.rightFootPointM;
-        ChainJacobian jac;
-        spatialJacobian(pose, seg, pts[1], jac);
+        const ChainJacobian& jac = foot == 0 ? left : right;
         const Twist tw = endEffectorTwist(jac, Vec3d::Zero(), rates);
         const Vec3d v = tw.head<3>();
         const Vec3d w = tw.tail<3>();
@@ -38,6 +27,14 @@ void footState(const Dimensions& d, const Pose& pose, const JointRates& rates, F
             out.velocityMps[u] = v + w.cross(out.pointM[u] - jac.pointM);
         }
     }
+}
+
+void footState(const Dimensions& d, const Pose& pose, const JointRates& rates, FootState& out) {
+    ChainJacobian left;
+    ChainJacobian right;
+    spatialJacobian(pose, idx(S::LHindfoot), d.leftFootPointM[1], left);
+    spatialJacobian(pose, idx(S::RHindfoot), d.rightFootPointM[1], right);
+    footState(d, pose, left, right, rates, out);
 }
 
 void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double rootZM) {
@@ -59,6 +56,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     root_ = Vec3d(rootXM, -lowest, rootZM);
     floorYM = 0;
     velocity_.setZero();
+    smoothVelocity_.setZero();
     phase_ = lowestIndex < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
     point_ = lowestIndex;
     freeFallCount_ = 0;
@@ -119,40 +117,45 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             ++stanceChanges_;
         }
     } else {
-        const int current = phase_ == ContactPhase::LeftStance ? 0 : 1;
-        const int other = 1 - current;
-        // The stance foot's world velocity is ~0 by construction (the root follows it), so the
-        // other foot is judged by its vertical velocity relative to the stance foot (it has
-        // stopped coming down), which does not depend on the root velocity estimate; the
-        // horizontal part is not used because the old stance foot, already pushing off, drags
-        // the relative velocity up.
-        const int pCur = lowestPoint(r, current);
-        const int pOther = lowestPoint(r, other);
-        const auto uc = static_cast<std::size_t>(pCur);
-        const auto uo = static_cast<std::size_t>(pOther);
-        const double hCur = r[uc].y() - minY;
-        const double hOther = r[uo].y() - minY;
-        const bool otherStill =
-            std::abs(feet.velocityMps[uo].y() - feet.velocityMps[uc].y()) < options_.speedMps;
-        // Where the root is this frame if the old contact point has not moved.
+        // The anchored point is the one predicted to move least in the world. Its velocity
+        // relative to the root plus the (low-passed) root velocity predicts its world velocity;
+        // only points near the floor qualify. The anchor is continuous across a change of point
+        // (the new point is held where it is now), so a change never makes the root jump: drift
+        // comes only from holding a point that in truth moves, which this choice minimises.
         const Vec3d here = anchor_ - r[static_cast<std::size_t>(point_)];
-        if (otherStill && hOther < options_.heightM && hCur > hOther + options_.switchMarginM) {
-            // The other foot has landed and this one lifts: it becomes the stance foot, held
-            // where it is now.
-            phase_ = other == 0 ? ContactPhase::LeftStance : ContactPhase::RightStance;
-            point_ = pOther;
-            anchor_ = here + r[static_cast<std::size_t>(pOther)];
-            anchor_.y() = floorYM;
-            ++stanceChanges_;
-        } else if (pCur != point_) {
-            // The foot rolls (heel to ball to toe): the new lowest point takes over where it is.
-            anchor_ = here + r[static_cast<std::size_t>(pCur)];
-            anchor_.y() = floorYM;
-            point_ = pCur;
+        auto predictedSpeed = [&](int k) {
+            return (smoothVelocity_ + feet.velocityMps[static_cast<std::size_t>(k)]).norm();
+        };
+        int best = -1;
+        double bestSpeed = std::numeric_limits<double>::max();
+        for (int k = 0; k < 6; ++k) {
+            if (r[static_cast<std::size_t>(k)].y() - minY > options_.heightM) {
+                continue;
+            }
+            const double v = predictedSpeed(k);
+            if (v < bestSpeed) {
+                bestSpeed = v;
+                best = k;
+            }
+        }
+        const bool currentQualifies =
+            r[static_cast<std::size_t>(point_)].y() - minY <= options_.heightM;
+        if (best != point_ &&
+            (!currentQualifies || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
+            if ((best < 3) != (point_ < 3)) {
+                ++stanceChanges_;
+            }
+            point_ = best;
+            phase_ = best < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
+            anchor_ = here + r[static_cast<std::size_t>(best)];
         }
         next = anchor_ - r[static_cast<std::size_t>(point_)];
-        next.y() = floorYM - r[static_cast<std::size_t>(point_)].y();
+        next.y() = floorYM - minY;  // the lowest foot point stands on the floor
         velocity_ = dtS > 0 ? Vec3d((next - root_) / dtS) : Vec3d::Zero();
+    }
+    if (dtS > 0) {
+        const double a = dtS / (options_.velocityTimeConstantS + dtS);
+        smoothVelocity_ += a * (velocity_ - smoothVelocity_);
     }
     root_ = next;
     const Vec3d shift = root_ - pose.positionM[0];

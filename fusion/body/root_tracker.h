@@ -1,5 +1,6 @@
-// Root translation from foot contacts: the stance foot is held where it touched the floor and
-// the root follows it; with both feet off the floor (a jump) the root flies ballistically.
+// Root translation from foot contacts: the foot point that is still (heel, ball or toe of either
+// foot) is held where it is and the root follows it; with both feet off the floor (a jump) the
+// root flies ballistically.
 // Assumes a flat, level floor at the height the feet had at reset (docs/skeleton.md).
 #pragma once
 
@@ -11,15 +12,16 @@
 namespace caphub::body {
 
 struct ContactOptions {
-    // A foot can be in contact when its lowest point is within this of the lowest foot point
-    // of the body (m) ...
+    // A foot point can carry the body when it is within this of the lowest foot point (m).
     double heightM = 0.04;
-    // ... and that point moves up or down slower than this relative to the stance foot (m/s;
-    // velocities from the Jacobian and the joint rates).
-    double speedMps = 0.8;
-    // The stance passes to the other foot when it is in contact and the stance foot's lowest
-    // point has risen this far above the other's (m): hysteresis against chatter.
-    double switchMarginM = 0.01;
+    // The point that carries the body is the one that moves least in the world: each point's
+    // world velocity is predicted from its velocity relative to the root (the Jacobian and the
+    // joint rates) plus the root velocity, low-passed with this time constant (s) so that the
+    // prediction does not simply restate which point is anchored now.
+    double velocityTimeConstantS = 0.05;
+    // Another point takes over when its predicted speed is below the anchored one's by this
+    // (m/s): hysteresis against chatter between points that are both still.
+    double switchMarginMps = 0.05;
     // Flight starts when the root's measured specific force (|a - g|, m/s^2) stays below this
     // for flightFrames frames; it ends when a foot reaches the floor.
     double freeFallMps2 = 3.0;
@@ -62,7 +64,8 @@ private:
     Vec3d root_ = Vec3d::Zero();
     Vec3d velocity_ = Vec3d::Zero();
     Vec3d takeoffVelocity_ = Vec3d::Zero();
-    Vec3d anchor_ = Vec3d::Zero();  // world position of the contact point
+    Vec3d smoothVelocity_ = Vec3d::Zero();  // low-passed root velocity, for the predictions
+    Vec3d anchor_ = Vec3d::Zero();          // world position of the contact point
     int point_ = -1;
     ContactPhase phase_ = ContactPhase::LeftStance;
     double floorYM = 0;
@@ -74,5 +77,9 @@ private:
 // Foot contact points (heel, ball, toe of each foot) of a pose, world, and their velocities
 // from the feet's Jacobians and the joint rates (root velocity excluded).
 void footState(const Dimensions& d, const Pose& pose, const JointRates& rates, FootState& out);
+// The same from Jacobians already made for any point of each hindfoot (the foot is rigid: the
+// velocity of point p is v + w x (p - point)), so that the solver builds each chain only once.
+void footState(const Dimensions& d, const Pose& pose, const ChainJacobian& left,
+               const ChainJacobian& right, const JointRates& rates, FootState& out);
 
 }  // namespace caphub::body

@@ -1,6 +1,6 @@
 // caphub_body_evaluate: the per-joint error table of the body solver on BVH clips through the
 // virtual suit's ground truth (ideal orientations).
-//   caphub_body_evaluate [--suit board.toml] [--rate HZ] clip.bvh...
+//   caphub_body_evaluate [--suit board.toml] [--rate HZ] [--speed X] clip.bvh...
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
     std::filesystem::path suit =
         std::filesystem::path(CAPHUB_SOURCE_DIR) / "board" / "sim-suit.toml";
     double rateHz = 100;
+    double speed = 1.0;
     std::vector<std::filesystem::path> clips;
     for (int i = 1; i < argc; ++i) {
         const std::string_view a = argv[i];
@@ -27,8 +28,16 @@ int main(int argc, char** argv) {
                 fmt::print(stderr, "--rate {}: expected a rate in Hz, 0 to 10000\n", argv[i]);
                 return 2;
             }
+        } else if (a == "--speed" && i + 1 < argc) {
+            char* end = nullptr;
+            speed = std::strtod(argv[++i], &end);
+            if (*end != '\0' || !(speed >= 0.1 && speed <= 10)) {
+                fmt::print(stderr, "--speed {}: expected a playback factor, 0.1 to 10\n", argv[i]);
+                return 2;
+            }
         } else if (!a.empty() && a[0] == '-') {
-            fmt::print(stderr, "unknown option '{}': expected --suit FILE, --rate HZ\n", a);
+            fmt::print(stderr, "unknown option '{}': expected --suit FILE, --rate HZ, --speed X\n",
+                       a);
             return 2;
         } else {
             clips.emplace_back(a);
@@ -36,12 +45,13 @@ int main(int argc, char** argv) {
     }
     if (clips.empty()) {
         fmt::print(stderr,
-                   "usage: caphub_body_evaluate [--suit board.toml] [--rate HZ] clip.bvh...\n");
+                   "usage: caphub_body_evaluate [--suit board.toml] [--rate HZ] [--speed X] "
+                   "clip.bvh...\n");
         return 2;
     }
     int rc = 0;
     for (const auto& c : clips) {
-        auto s = caphub::body::evaluation::scoreClip(c, suit, rateHz);
+        auto s = caphub::body::evaluation::scoreClip(c, suit, rateHz, speed);
         if (!s) {
             fmt::print(stderr, "{}\n", s.error().message);
             rc = 1;

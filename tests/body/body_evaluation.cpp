@@ -15,7 +15,7 @@ namespace caphub::body::evaluation {
 namespace bs = board::sim;
 
 Result<ClipScore> scoreClip(const std::filesystem::path& bvh, const std::filesystem::path& suit,
-                            double rateHz) {
+                            double rateHz, double speed) {
     auto clip = bs::loadBvh(bvh);
     if (!clip) {
         return clip.error();
@@ -87,12 +87,14 @@ Result<ClipScore> scoreClip(const std::filesystem::path& bvh, const std::filesys
     ClipScore score;
     score.clip = bvh.filename().string();
     score.rateHz = rateHz;
+    score.speed = speed;
     const double dt = 1.0 / rateHz;
     const auto durationNs = motion->durationNs();
     Vec3d lastTrueRoot = Vec3d::Zero();
     int frames = 0;
     for (std::int64_t k = 0;; ++k) {
-        const auto tNs = static_cast<std::int64_t>(std::llround(static_cast<double>(k) * dt * 1e9));
+        const auto tNs =
+            static_cast<std::int64_t>(std::llround(static_cast<double>(k) * dt * speed * 1e9));
         if (tNs > durationNs) {
             break;
         }
@@ -143,7 +145,8 @@ Result<ClipScore> scoreClip(const std::filesystem::path& bvh, const std::filesys
 }
 
 std::string formatTable(const ClipScore& s) {
-    std::string out = fmt::format("clip {}: {} frames at {} Hz\n\n", s.clip, s.frames, s.rateHz);
+    std::string out = fmt::format("clip {}: {} frames at {} Hz{}\n\n", s.clip, s.frames, s.rateHz,
+                                  s.speed != 1.0 ? fmt::format(", played {}x", s.speed) : "");
     out += "| joint | segment | angle error (deg) | position error (cm) |\n|---|---|---|---|\n";
     for (int i = 0; i < kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);

@@ -16,6 +16,7 @@ struct ClipScore {
     std::string clip;
     int frames = 0;
     double rateHz = 0;
+    double speed = 1.0;
     // Per joint (segment index): mean angle error of the joint rotation (the pelvis: of its
     // world orientation), deg; mean position error of the joint centre relative to the root, m.
     std::array<double, kSegmentCount> angleDeg{};
@@ -28,9 +29,10 @@ struct ClipScore {
     int stanceChanges = 0;
 };
 
-// suit: a board file (its sensors' segments and nominal mountings); rateHz: solver rate.
+// suit: a board file (its sensors' segments and nominal mountings); rateHz: solver rate;
+// speed: the clip played this many times faster (a stand-in for faster gaits than the clip's).
 Result<ClipScore> scoreClip(const std::filesystem::path& bvh, const std::filesystem::path& suit,
-                            double rateHz);
+                            double rateHz, double speed = 1.0);
 
 std::string formatTable(const ClipScore& s);
 

@@ -2,6 +2,7 @@
 // drift, and a jump has a flight phase that ends on the floor.
 #include "fusion/body/root_tracker.h"
 
+#include <cmath>
 #include <numbers>
 
 #include <gtest/gtest.h>
@@ -78,6 +79,54 @@ TEST(RootTracker, TheStanceFootStaysWhereItTouchedTheFloor) {
     // length from hip to ankle (0.491 H).
     const double leg = (0.245 + 0.246) * 1.75;
     EXPECT_NEAR(s.pose().positionM[0].z(), 2 * leg * std::sin(20 * kDeg), 1e-9);
+}
+
+TEST(RootTracker, AMovingFootDoesNotTakeOverFromTheStillOneEvenWhenLower) {
+    // The push-off case: the left foot is planted flat while the right foot, pitched toes-down so
+    // that its toe tip is the lowest foot point, moves forward. The still left foot must keep
+    // carrying the body; anchoring the lowest point instead would drag the root with the right
+    // foot.
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    auto pose = [](double phi, double plantarRad) {
+        Pose p;
+        p.qLocal[idx(S::LThigh)] = Quatd(Eigen::AngleAxisd(phi, Vec3d::UnitX()));
+        p.qLocal[idx(S::LHindfoot)] = Quatd(Eigen::AngleAxisd(-phi, Vec3d::UnitX()));
+        p.qLocal[idx(S::RThigh)] = Quatd(Eigen::AngleAxisd(-phi, Vec3d::UnitX()));
+        p.qLocal[idx(S::RHindfoot)] = Quatd(Eigen::AngleAxisd(phi + plantarRad, Vec3d::UnitX()));
+        return p;
+    };
+    // Standing (the left heel is the first of the equally low points: the anchor), then the
+    // right foot tips toes-down by 5 deg, then the body rolls over the left leg (0 to 20 deg,
+    // easing in) while the right leg swings forward by as much.
+    s.solve(frameOf(pose(0, 0)), 0.02);
+    const Vec3d start = pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]);
+    const double plantar = 5 * kDeg;
+    for (int k = 1; k <= 20; ++k) {
+        s.solve(frameOf(pose(0, plantar * k / 20)), 0.02);
+    }
+    int rightToeLowest = 0;
+    for (int k = 1; k <= 50; ++k) {
+        const double phi = 20 * kDeg * (1 - std::cos(std::numbers::pi * k / 50)) / 2;
+        s.solve(frameOf(pose(phi, plantar)), 0.02);
+        const auto& y = s.feet().pointM;
+        double lowest = 1e9;
+        int at = 0;
+        for (int q = 0; q < 6; ++q) {
+            if (y[static_cast<std::size_t>(q)].y() < lowest) {
+                lowest = y[static_cast<std::size_t>(q)].y();
+                at = q;
+            }
+        }
+        rightToeLowest += at == 5 ? 1 : 0;
+        const Vec3d heel = pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]);
+        // Rigid kinematics with the left foot held: only rounding moves its heel horizontally
+        // (vertically the body stands on its lowest point, the right toe, 1.8 cm lower).
+        EXPECT_LT(std::hypot(heel.x() - start.x(), heel.z() - start.z()), 1e-9) << "frame " << k;
+    }
+    // The case is the intended one: the right toe tip was the lowest point throughout.
+    EXPECT_EQ(rightToeLowest, 50);
+    EXPECT_GT(s.pose().positionM[0].z(), 0.1);  // and the body did move forward
 }
 
 TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
