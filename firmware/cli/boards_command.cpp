@@ -56,6 +56,14 @@ void describe(const Board& b, const std::vector<BusLoad>& loads) {
     }
     fmt::print("  subject {:g} m{}\n", b.subject.heightM,
                b.subject.massKg ? fmt::format(", {:g} kg", *b.subject.massKg) : "");
+    if (b.runtime.realtimePriority > 0 || !b.runtime.cpus.empty()) {
+        fmt::print(
+            "  capture threads: {}{}\n",
+            b.runtime.realtimePriority > 0
+                ? fmt::format("SCHED_FIFO {}", b.runtime.realtimePriority)
+                : std::string("normal scheduling"),
+            b.runtime.cpus.empty() ? "" : fmt::format(", CPUs {}", fmt::join(b.runtime.cpus, ",")));
+    }
     fmt::print("{} sensors on {} buses, {} muxes\n", b.sensors.size(), b.buses.size(),
                b.muxes.size());
     for (const BusLoad& load : loads) {
