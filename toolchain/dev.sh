@@ -41,10 +41,10 @@ run)
     for kind in gyro accel mag; do
         "$caphub" calibrate "$kind" --board "$board" --file "$calibration" | tail -n 1
     done
+    recording="$out/recordings/capture.cap"
     "$caphub" run --board "$board" --duration "${CAPHUB_RUN_SECONDS:-12}" --calibrate tpose \
         --calibration "$calibration" --preview "png:$out/preview" --preview-fps 5 \
-        --out "$out/recordings" | tee "$out/run-report.txt"
-    recording=$(ls -t "$out"/recordings/*.cap | sed -n 1p)
+        --record "$recording" | tee "$out/run-report.txt"
     "$caphub" info "$recording" >"$out/recording-info.txt"
     "$caphub" export "$recording" --format bvh -o "$out/exports/capture.bvh"
     "$caphub" export "$recording" --format glb -o "$out/exports/capture.glb"
