@@ -49,27 +49,43 @@ constexpr std::int64_t kDiffNs = 100'000;
 
 }  // namespace
 
+namespace {
+std::array<Quatd, board::kSegmentCount> tPose() {
+    std::array<Quatd, board::kSegmentCount> q;
+    q.fill(Quatd::Identity());
+    return q;
+}
+}  // namespace
+
 LeadInMotion::LeadInMotion(std::shared_ptr<const Motion> clip, double holdS, double blendS)
+    : LeadInMotion(std::move(clip), holdS, blendS, tPose()) {}
+
+LeadInMotion::LeadInMotion(std::shared_ptr<const Motion> clip, double holdS, double blendS,
+                           const std::array<Quatd, board::kSegmentCount>& pose)
     : clip_(std::move(clip)),
       holdNs_(static_cast<std::int64_t>(std::llround(holdS * 1e9))),
-      blendNs_(static_cast<std::int64_t>(std::llround(std::max(blendS, 0.1) * 1e9))) {
+      blendNs_(static_cast<std::int64_t>(std::llround(std::max(blendS, 0.1) * 1e9))),
+      pose_(pose) {
     for (int i = 0; i < board::kSegmentCount; ++i) {
         clip_->evaluate(static_cast<Segment>(i), 0, start_[static_cast<std::size_t>(i)]);
     }
+    for (auto& q : pose_) {
+        q.normalize();
+    }
     // Segments come parents first (board/segment.h): each origin is its parent's plus the bone
-    // vector of the clip's first pose, unturned.
+    // vector of the clip's first pose, turned by the parent's orientation in the pose held.
     for (int i = 0; i < board::kSegmentCount; ++i) {
         const auto s = static_cast<Segment>(i);
         const auto u = static_cast<std::size_t>(i);
         const auto parent = parentSegment(s);
         if (!parent) {
-            tposeM_[u] = start_[u].positionM;
+            poseM_[u] = start_[u].positionM;
             continue;
         }
         const auto p = static_cast<std::size_t>(*parent);
         const Vec3d bone =
             start_[p].qWorldSegment.conjugate() * (start_[u].positionM - start_[p].positionM);
-        tposeM_[u] = tposeM_[p] + bone;
+        poseM_[u] = poseM_[p] + pose_[p] * bone;
     }
 }
 
@@ -78,8 +94,8 @@ void LeadInMotion::blendPose(Segment s, std::int64_t tNs, Quatd& q, Vec3d& p, Ve
     const auto u = static_cast<std::size_t>(s);
     const SegmentState& c = start_[u];
     if (tNs <= holdNs_) {
-        q = Quatd::Identity();
-        p = tposeM_[u];
+        q = pose_[u];
+        p = poseM_[u];
         v = a = Vec3d::Zero();
         return;
     }
@@ -88,14 +104,14 @@ void LeadInMotion::blendPose(Segment s, std::int64_t tNs, Quatd& q, Vec3d& p, Ve
     Vec3d r;
     Vec3d dr;
     Vec3d ddr;
-    // q = q0 exp(r): r goes from log(q0^-1 qT) to 0, ending with the clip's body rate and
+    // q = q0 exp(r): r goes from log(q0^-1 qPose) to 0, ending with the clip's body rate and
     // angular acceleration (at r = 0 they are r' and r'').
-    quintic<Vec3d>(logOf(c.qWorldSegment.conjugate()), Vec3d::Zero(), c.omegaRadS * blendS,
-                   c.alphaRadS2 * blendS * blendS, tau, r, dr, ddr);
+    quintic<Vec3d>(logOf(c.qWorldSegment.conjugate() * pose_[u]), Vec3d::Zero(),
+                   c.omegaRadS * blendS, c.alphaRadS2 * blendS * blendS, tau, r, dr, ddr);
     q = (c.qWorldSegment * expOf(r)).normalized();
     Vec3d dp;
     Vec3d ddp;
-    quintic<Vec3d>(tposeM_[u], c.positionM, c.velocityMps * blendS,
+    quintic<Vec3d>(poseM_[u], c.positionM, c.velocityMps * blendS,
                    c.accelerationMps2 * blendS * blendS, tau, p, dp, ddp);
     v = dp / blendS;
     a = ddp / (blendS * blendS);

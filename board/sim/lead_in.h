@@ -1,6 +1,7 @@
-// A reference pose before the clip: the subject stands in the T-pose (every segment aligned with
-// the world, facing +Z), then moves smoothly into the clip's first pose and motion - what a
-// person wearing a suit does when a capture starts with a calibration pose.
+// A reference pose before the clip: the subject stands in a calibration pose - the T-pose (every
+// segment aligned with the world, facing +Z) or any other given as segment orientations, such
+// as the N-pose - then moves smoothly into the clip's first pose and motion: what a person
+// wearing a suit does when a capture starts with a calibration pose.
 #pragma once
 
 #include <array>
@@ -13,9 +14,12 @@ namespace caphub::board::sim {
 class LeadInMotion final : public SegmentTrajectory {
 public:
     // Holds the T-pose for holdS, then blends over blendS into the clip; the clip's time 0 is
-    // at holdS + blendS. The T-pose stands where the clip starts (the pelvis at its first
+    // at holdS + blendS. The pose stands where the clip starts (the pelvis at its first
     // position), with the bone vectors of the clip's first pose.
     LeadInMotion(std::shared_ptr<const Motion> clip, double holdS, double blendS);
+    // The same with the pose held given as each segment's orientation in the skeleton world.
+    LeadInMotion(std::shared_ptr<const Motion> clip, double holdS, double blendS,
+                 const std::array<Quatd, board::kSegmentCount>& pose);
 
     void evaluate(board::Segment s, std::int64_t tNs, SegmentState& out) const override;
 
@@ -33,7 +37,8 @@ private:
     std::shared_ptr<const Motion> clip_;
     std::int64_t holdNs_ = 0;
     std::int64_t blendNs_ = 0;
-    std::array<Vec3d, board::kSegmentCount> tposeM_{};        // each origin in the T-pose
+    std::array<Quatd, board::kSegmentCount> pose_{};          // the pose held
+    std::array<Vec3d, board::kSegmentCount> poseM_{};         // each origin in it
     std::array<SegmentState, board::kSegmentCount> start_{};  // the clip at its time 0
 };
 

@@ -236,8 +236,12 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     suit.environment = environmentFor(options.profile, pelvis.positionM);
     suit.trajectory = suit.motion;
     if (options.tposeHoldS > 0) {
-        auto leadIn = std::make_shared<const LeadInMotion>(suit.motion, options.tposeHoldS,
-                                                           options.tposeBlendS);
+        auto leadIn =
+            options.leadInPose
+                ? std::make_shared<const LeadInMotion>(suit.motion, options.tposeHoldS,
+                                                       options.tposeBlendS, *options.leadInPose)
+                : std::make_shared<const LeadInMotion>(suit.motion, options.tposeHoldS,
+                                                       options.tposeBlendS);
         suit.leadInNs = leadIn->leadInNs();
         suit.trajectory = leadIn;
     }

@@ -3,9 +3,11 @@
 // muxes and data-ready waiting the hub uses on real buses.
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 
 #include "board/hardware.h"
 #include "board/sim/imu_model.h"
@@ -50,6 +52,9 @@ struct ClipOptions {
     // into the clip over tposeBlendS (board/sim/lead_in.h); 0: the clip starts at once.
     double tposeHoldS = 0;
     double tposeBlendS = 1.5;
+    // The pose held instead of the T-pose, as each segment's orientation in the skeleton world
+    // (the N-pose for an N-pose calibration); none: the T-pose.
+    std::optional<std::array<Quatd, board::kSegmentCount>> leadInPose;
 };
 
 struct ClipSuit {

@@ -177,13 +177,10 @@ int run(const RunOptions& o) {
         clip.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
         clip.map = o.map;
         clip.seed = o.seed;
-        if (bodyOptions.calibrate == body::ReferencePoseKind::T) {
-            clip.tposeHoldS = holdS;  // the virtual subject stands in the T-pose first
-        } else if (bodyOptions.calibrate) {
-            fmt::print(stderr,
-                       "caphub run: the virtual suit stands in the T-pose only "
-                       "(--calibrate tpose)\n");
-            return kExitUsage;
+        if (bodyOptions.calibrate) {
+            // The virtual subject first stands in the calibration pose.
+            clip.tposeHoldS = holdS;
+            clip.leadInPose = body::referencePose(*bodyOptions.calibrate);
         }
         const auto profile = board::sim::parseErrorProfile(o.profile);
         if (!profile) {

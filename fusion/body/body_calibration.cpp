@@ -132,6 +132,14 @@ Quatd referenceOrientation(ReferencePoseKind pose, Segment s) {
         Eigen::AngleAxisd(left ? -std::numbers::pi / 2 : std::numbers::pi / 2, Vec3d::UnitZ()));
 }
 
+std::array<Quatd, kSegmentCount> referencePose(ReferencePoseKind pose) {
+    std::array<Quatd, kSegmentCount> q;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        q[static_cast<std::size_t>(i)] = referenceOrientation(pose, static_cast<Segment>(i));
+    }
+    return q;
+}
+
 Result<BodyCalibration> calibrateOnePose(ReferencePoseKind pose, const SensorFrame& frame,
                                          const CalibrationOptions& options, std::int64_t tNs) {
     if (auto ok = checkFrame(frame, pose == ReferencePoseKind::T ? "T-pose" : "N-pose"); !ok) {

@@ -52,6 +52,8 @@ Quatd enuFromSkeletonWorld();
 // The segment orientations of the reference poses, in the capture world.
 enum class ReferencePoseKind : std::uint8_t { T, N };
 Quatd referenceOrientation(ReferencePoseKind pose, Segment s);
+// Every segment's referenceOrientation: the pose a subject holds to calibrate.
+std::array<Quatd, kSegmentCount> referencePose(ReferencePoseKind pose);
 
 struct CalibrationOptions {
     // The subject's heading at calibration (rad about up, from north as world +Z). Unknown:

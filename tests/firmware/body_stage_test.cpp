@@ -4,6 +4,7 @@
 // preview renders those poses on its own thread.
 #include "firmware/runtime/body_stage.h"
 
+#include <array>
 #include <chrono>
 #include <filesystem>
 #include <vector>
@@ -25,13 +26,16 @@ namespace bs = board::sim;
 
 const std::filesystem::path kSource(CAPHUB_SOURCE_DIR);
 
-TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
+// The virtual subject holds `pose` for 4 s, the stage calibrates in it, then the clip plays;
+// each sensor's calibrated mounting is compared with its true (strapped) one.
+void calibrateInPose(body::ReferencePoseKind pose, body::CalibrationMethod method) {
     const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
     SimulatedClock clock(Timestamp{1s});
     bs::ClipOptions o;
     o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
     o.profile = bs::ErrorProfile::Ideal;
     o.tposeHoldS = 4.0;
+    o.leadInPose = body::referencePose(pose);
     auto clip = bs::clipSources(o, clock.now());
     ASSERT_TRUE(clip) << clip.error().message;
     auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
@@ -40,7 +44,7 @@ TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     firmware::FusionStage fusion(b, nullptr);
     firmware::BodyStage::Options bo;
     bo.rateHz = 50;
-    bo.calibrate = body::ReferencePoseKind::T;
+    bo.calibrate = pose;
     firmware::BodyStage bodyStage(b, fusion, nullptr, clock, bo);
     firmware::SteppedCapture capture(*suit, clock);
     const Timestamp start = clock.now();
@@ -50,7 +54,7 @@ TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     });
 
     ASSERT_TRUE(bodyStage.calibrated()) << bodyStage.calibrationError();
-    EXPECT_EQ(bodyStage.calibration().method, body::CalibrationMethod::TPose);
+    EXPECT_EQ(bodyStage.calibration().method, method);
     double calibrated = 0;
     double nominal = 0;
     for (std::size_t i = 0; i < b.sensors.size(); ++i) {
@@ -69,6 +73,17 @@ TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     EXPECT_LT(calibrated, 0.5 * nominal);
     // Calibrated after 2.5 + 1 s of the 8 s (the first samples come ~0.2 s in), then 50 Hz.
     EXPECT_NEAR(static_cast<double>(bodyStage.poses()), 50 * (8.0 - 3.7), 15);
+}
+
+TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
+    calibrateInPose(body::ReferencePoseKind::T, body::CalibrationMethod::TPose);
+}
+
+// The arms hang in the N-pose: a calibration that assumed the T-pose would put the arm sensors'
+// mountings 90 deg off, so this checks that the virtual subject holds the N-pose and the stage
+// calibrates against it.
+TEST(BodyStage, CalibratesInTheNPoseThenPosesAtTheOutputRate) {
+    calibrateInPose(body::ReferencePoseKind::N, body::CalibrationMethod::NPose);
 }
 
 TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {

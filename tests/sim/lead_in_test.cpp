@@ -2,8 +2,10 @@
 // in pose, rate or acceleration, with rates that are the derivatives of the pose.
 #include "board/sim/lead_in.h"
 
+#include <array>
 #include <filesystem>
 #include <memory>
+#include <numbers>
 
 #include <gtest/gtest.h>
 
@@ -46,6 +48,38 @@ TEST(LeadIn, StandsInTheTPoseThenJoinsTheClipWithoutAJump) {
         EXPECT_LT((before.omegaRadS - after.omegaRadS).norm(), 0.05) << segmentName(s);
         EXPECT_LT((before.velocityMps - after.velocityMps).norm(), 0.01) << segmentName(s);
     }
+}
+
+TEST(LeadIn, HoldsAGivenPoseWithTheBonesTurnedByIt) {
+    // Arms down: the upper arms, forearms and hands turned a quarter turn about the forward
+    // axis (+Z), as in an N-pose; everything else as in the T-pose.
+    std::array<Quatd, kSegmentCount> pose;
+    pose.fill(Quatd::Identity());
+    const Quatd leftDown(Eigen::AngleAxisd(-std::numbers::pi / 2, Vec3d::UnitZ()));
+    for (Segment s : {Segment::LUpperarm, Segment::LForearm, Segment::LHand}) {
+        pose[static_cast<std::size_t>(s)] = leftDown;
+    }
+    const auto clip = walk();
+    const LeadInMotion n(clip, 2.0, 1.5, pose);
+    const LeadInMotion t(clip, 2.0, 1.5);
+    const auto pos = [](const LeadInMotion& m, Segment s) {
+        return at(m, s, kMs * 1000).positionM;
+    };
+    EXPECT_TRUE(at(n, Segment::LForearm, kMs * 1000).qWorldSegment.isApprox(leftDown));
+    // The shoulder stays; the elbow, which is out to the side (+X) in the T-pose, hangs below
+    // it by the same upper-arm length.
+    EXPECT_LT((pos(n, Segment::LUpperarm) - pos(t, Segment::LUpperarm)).norm(), 1e-12);
+    const Vec3d tBone = pos(t, Segment::LForearm) - pos(t, Segment::LUpperarm);
+    const Vec3d nBone = pos(n, Segment::LForearm) - pos(n, Segment::LUpperarm);
+    EXPECT_NEAR(nBone.norm(), tBone.norm(), 1e-12);
+    EXPECT_LT((nBone - leftDown * tBone).norm(), 1e-12);
+    EXPECT_LT(nBone.y(), -0.2);  // an upper arm is 0.25-0.35 m
+    // The right arm and the legs do not move.
+    EXPECT_LT((pos(n, Segment::RHand) - pos(t, Segment::RHand)).norm(), 1e-12);
+    // And the blend still ends in the clip without a jump.
+    const SegmentState before = at(n, Segment::LForearm, n.leadInNs() - kMs / 1000);
+    const SegmentState after = at(*clip, Segment::LForearm, 0);
+    EXPECT_LT(before.qWorldSegment.angularDistance(after.qWorldSegment), 1e-3);
 }
 
 TEST(LeadIn, BlendRatesAreTheDerivativesOfThePose) {
