@@ -41,6 +41,7 @@ int runCli(int argc, char** argv) {
     addReplayCommand(app, exitCode);
     addStatusCommand(app, exitCode);
     addExportCommand(app, exitCode);
+    addEvaluateCommand(app, exitCode);
 
     try {
         app.parse(argc, argv);

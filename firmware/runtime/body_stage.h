@@ -27,6 +27,8 @@ public:
         std::optional<body::ReferencePoseKind> calibrate;
         Duration settle = std::chrono::milliseconds(2500);
         Duration average = std::chrono::milliseconds(1000);
+        // The subject's skeleton; default: from the board's [subject].
+        std::optional<body::Dimensions> dimensions;
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations);
@@ -43,6 +45,9 @@ public:
     const std::string& calibrationError() const { return calibrationError_; }
     std::uint64_t poses() const { return poses_; }
     const body::Pose& pose() const { return solver_.pose(); }
+    // When the latest pose was solved for (its grid point), and the solver (its root tracker).
+    Timestamp poseTime() const { return lastFrame_; }
+    const body::BodySolver& solver() const { return solver_; }
     // Per pose, the time from the newest sample's data-ready edge to the pose being written, on
     // the capture clock as the pipeline saw it: percentiles (0..1) over the last 65536 poses
     // (18 min at 60 Hz).

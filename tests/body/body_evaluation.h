@@ -3,30 +3,20 @@
 // file's mountings, and the solver's joints and root are compared with the truth.
 #pragma once
 
-#include <array>
 #include <filesystem>
 #include <string>
 
 #include "fusion/body/body_calibration.h"
+#include "fusion/body/pose_score.h"
 #include "hal/core/error.h"
 
 namespace caphub::body::evaluation {
 
-struct ClipScore {
+// The shared scoring (fusion/body/pose_score.h) of one clip, and how it was played.
+struct ClipScore : PoseScore {
     std::string clip;
-    int frames = 0;
     double rateHz = 0;
     double speed = 1.0;
-    // Per joint (segment index): mean angle error of the joint rotation (the pelvis: of its
-    // world orientation), deg; mean position error of the joint centre relative to the root, m.
-    std::array<double, kSegmentCount> angleDeg{};
-    std::array<double, kSegmentCount> positionM{};
-    double meanAngleDeg = 0;   // over the 21 joints
-    double meanPositionM = 0;  // over the 20 joints below the root
-    double walkedM = 0;        // horizontal path length of the true root
-    double finalDriftM = 0;    // horizontal distance between solved and true root at the end
-    double maxDriftM = 0;
-    int stanceChanges = 0;
 };
 
 // suit: a board file (its sensors' segments and nominal mountings); rateHz: solver rate;

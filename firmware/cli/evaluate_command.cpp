@@ -1,0 +1,159 @@
+// caphub evaluate: the body solver scored against the simulation's ground truth through the whole
+// path of `caphub run` on the virtual suit (chip models, drivers, bus workers, FusionStage,
+// BodyStage with its T-pose calibration): the per-joint error table of every clip. A
+// measurement, not a test: it exits 0 whatever the errors are.
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "board/loader.h"
+#include "firmware/calibration_file.h"
+#include "firmware/cli/app.h"
+#include "firmware/cli/commands.h"
+#include "firmware/cli/data_dir.h"
+#include "firmware/evaluation.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct EvaluateCliOptions {
+    std::vector<std::string> bvh;
+    std::string map;
+    std::string board = "sim-suit";
+    std::string profile = "typical";
+    std::uint64_t seed = 1;
+    double strapDeg = 10;
+    std::string calibrate = "tpose";
+    std::string calibration;
+    double poseRateHz = 60;
+    std::string skeleton = "clip";
+    std::string json;
+};
+
+int evaluate(const EvaluateCliOptions& c) {
+    const auto loaded = loadCommandBoard(c.board);
+    if (!loaded) {
+        return kExitUsage;
+    }
+    const board::Board& b = *loaded;
+    if (!board::allBusesSimulated(b)) {
+        fmt::print(stderr,
+                   "caphub evaluate: '{}' has real buses; the evaluation needs a board whose "
+                   "buses are all 'sim' (e.g. sim-suit, sim-upper10)\n",
+                   b.path.string());
+        return kExitUsage;
+    }
+    EvaluateOptions o;
+    o.map = c.map;
+    o.seed = c.seed;
+    o.strapDeg = c.strapDeg;
+    o.poseRateHz = c.poseRateHz;
+    const auto profile = board::sim::parseErrorProfile(c.profile);
+    if (!profile) {
+        fmt::print(stderr,
+                   "caphub evaluate: --profile: expected ideal, typical or harsh, got '{}'\n",
+                   c.profile);
+        return kExitUsage;
+    }
+    o.profile = *profile;
+    if (c.calibrate == "tpose") {
+        o.calibrate = body::ReferencePoseKind::T;
+    } else if (c.calibrate == "none") {
+        o.calibrate.reset();
+    } else if (c.calibrate == "npose") {
+        o.calibrate = body::ReferencePoseKind::N;
+    } else {
+        fmt::print(stderr,
+                   "caphub evaluate: --calibrate: expected tpose, npose or none, got '{}'\n",
+                   c.calibrate);
+        return kExitUsage;
+    }
+    if (c.skeleton != "clip" && c.skeleton != "board") {
+        fmt::print(stderr, "caphub evaluate: --skeleton: expected clip or board, got '{}'\n",
+                   c.skeleton);
+        return kExitUsage;
+    }
+    o.measuredSkeleton = c.skeleton == "clip";
+    if (!c.calibration.empty()) {
+        auto set = readCalibrationFile(c.calibration);
+        if (!set) {
+            fmt::print(stderr, "caphub evaluate: {}\n", set.error().message);
+            return kExitUsage;
+        }
+        o.sensorCalibrations = calibrationsFor(b, *set, nullptr);
+    }
+    // Every clip is checked before the first (long) run.
+    for (const auto& path : c.bvh) {
+        std::error_code ec;
+        if (!fs::is_regular_file(path, ec)) {
+            fmt::print(stderr, "caphub evaluate: --bvh '{}': no such file\n", path);
+            return kExitUsage;
+        }
+    }
+
+    std::vector<EvaluateResult> results;
+    for (const auto& path : c.bvh) {
+        o.bvh = path;
+        auto r = evaluateClip(b, o);
+        if (!r) {
+            fmt::print(stderr, "caphub evaluate: {}\n", r.error().message);
+            return r.error().code == EINVAL ? kExitUsage : kExitRuntime;
+        }
+        fmt::print("{}\n", formatEvaluation(*r, b, o));
+        results.push_back(std::move(*r));
+    }
+    if (!c.json.empty()) {
+        std::ofstream out(c.json, std::ios::trunc);
+        out << evaluationJson(results, b, o);
+        out.close();
+        if (!out) {
+            fmt::print(stderr, "caphub evaluate: --json: cannot write '{}'\n", c.json);
+            return kExitRuntime;
+        }
+        fmt::print("scores written to {}\n", c.json);
+    }
+    return kExitOk;
+}
+
+}  // namespace
+
+void addEvaluateCommand(CLI::App& app, int& exitCode) {
+    auto o = std::make_shared<EvaluateCliOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "evaluate",
+        "Score the body solver against the virtual suit's ground truth through fusion and body");
+    cmd->add_option("--bvh", o->bvh, "A motion clip (BVH) to score; repeatable")->required();
+    cmd->add_option("--map", o->map, "Joint-name map (TOML); default: detect a built-in preset");
+    cmd->add_option("-b,--board", o->board, "A board whose buses are all simulated")
+        ->capture_default_str();
+    cmd->add_option("--profile", o->profile, "Sensor errors: ideal, typical, harsh")
+        ->capture_default_str();
+    cmd->add_option("--seed", o->seed, "Seed of the sensor errors and straps")
+        ->capture_default_str();
+    cmd->add_option("--strap-deg", o->strapDeg,
+                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("--calibrate", o->calibrate,
+                    "Body calibration in the lead-in's T-pose: tpose, or none (the board's "
+                    "nominal mountings)")
+        ->capture_default_str();
+    cmd->add_option("--calibration", o->calibration,
+                    "Sensor calibration file (caphub calibrate) applied before the filters");
+    cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
+        ->check(CLI::Range(1.0, 1000.0))
+        ->capture_default_str();
+    cmd->add_option("--skeleton", o->skeleton,
+                    "The body's skeleton: clip (measured from the clip, as the subject's own "
+                    "lengths would be) or board (the board's [subject] proportions)")
+        ->capture_default_str();
+    cmd->add_option("--json", o->json, "Also write the scores to this JSON file");
+    cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });
+}
+
+}  // namespace caphub::firmware

@@ -1,0 +1,229 @@
+#include "firmware/evaluation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "board/sim/virtual_suit.h"
+#include "firmware/runtime/body_stage.h"
+#include "firmware/runtime/stepped_capture.h"
+#include "fusion/body/skeleton.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace bs = board::sim;
+
+// The clip's key frames as true body states, for measuring the subject's skeleton.
+std::vector<body::BodyTruth> keyFrames(const bs::Motion& motion) {
+    std::vector<body::BodyTruth> keys(static_cast<std::size_t>(motion.frameCount()));
+    for (std::size_t f = 0; f < keys.size(); ++f) {
+        for (int i = 0; i < body::kSegmentCount; ++i) {
+            const auto s = static_cast<board::Segment>(i);
+            const auto u = static_cast<std::size_t>(i);
+            keys[f].qWorldSegment[u] = motion.keyOrientation(s, static_cast<int>(f));
+            keys[f].positionM[u] = motion.keyPositionM(s, static_cast<int>(f));
+        }
+    }
+    return keys;
+}
+
+std::string calibrationName(const BodyStage& stage) {
+    if (stage.calibration().method == body::CalibrationMethod::None) {
+        return "nominal mountings (none)";
+    }
+    return std::string(body::toString(stage.calibration().method));
+}
+
+}  // namespace
+
+Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
+    if (!board::allBusesSimulated(b)) {
+        return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
+                                         "virtual suit (every bus 'sim', e.g. sim-suit)",
+                                         b.name)};
+    }
+    BodyStage::Options bodyOptions;
+    bodyOptions.rateHz = o.poseRateHz;
+    bodyOptions.calibrate = o.calibrate;
+
+    // The subject holds the calibration pose (the T-pose without one) from the start as long as
+    // `caphub run` asks for it (the averaging window and a margin), then blends into the clip. The
+    // lead-in is played whatever the calibration, so that every calibration is scored on the same
+    // poses.
+    SimulatedClock clock(Timestamp{std::chrono::seconds(1)});
+    const Timestamp start = clock.now();
+    bs::ClipOptions clipOptions;
+    clipOptions.bvh = o.bvh;
+    clipOptions.map = o.map;
+    clipOptions.profile = o.profile;
+    clipOptions.seed = o.seed;
+    clipOptions.strapErrorDeg = o.strapDeg;
+    clipOptions.tposeHoldS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
+    if (o.calibrate) {
+        clipOptions.leadInPose = body::referencePose(*o.calibrate);  // the N-pose for npose
+    }
+    auto clip = bs::clipSources(clipOptions, start);
+    if (!clip) {
+        return Error{EINVAL, clip.error().message};
+    }
+    if (o.measuredSkeleton) {
+        bodyOptions.dimensions = body::measuredDimensions(keyFrames(*clip->motion));
+    }
+    auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
+    if (!suit) {
+        return Error{EINVAL, suit.error().message};
+    }
+
+    FusionStage fusion(b, nullptr, o.sensorCalibrations);
+    BodyStage bodyStage(b, fusion, nullptr, clock, bodyOptions);
+    SteppedCapture capture(*suit, clock);
+
+    EvaluateResult r;
+    r.clip = o.bvh.filename().string();
+    r.leadInS = static_cast<double>(clip->leadInNs) * 1e-9;
+    r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
+    body::PoseScorer scorer(body::PoseScorer::RootOrigin::AtFirstFrame);
+    body::BodyTruth truth;
+    bs::SegmentState seg;
+    std::uint64_t posesSeen = 0;
+    const bs::SegmentTrajectory& trajectory = *clip->trajectory;
+    const auto onSample = [&](const SensorSample& s) {
+        ++r.samples;
+        fusion.onSample(s);
+        bodyStage.onSample(s);
+        if (bodyStage.poses() == posesSeen) {
+            return;
+        }
+        // A sample that passes several grid points solves them all from the same orientations;
+        // the latest of them is scored.
+        posesSeen = bodyStage.poses();
+        const std::int64_t tNs = toNs(bodyStage.poseTime() - start);
+        if (tNs < clip->leadInNs) {
+            return;  // the T-pose hold and the blend: not part of the clip
+        }
+        for (int i = 0; i < body::kSegmentCount; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            trajectory.evaluate(static_cast<board::Segment>(i), tNs, seg);
+            truth.qWorldSegment[u] = seg.qWorldSegment;
+            truth.positionM[u] = seg.positionM;
+        }
+        scorer.add(bodyStage.pose(), truth);
+    };
+    const auto wallStart = std::chrono::steady_clock::now();
+    capture.runUntil(start + Duration{clip->leadInNs + clip->motion->durationNs()}, onSample);
+    r.wallS = std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
+
+    if (!bodyStage.calibrationError().empty()) {
+        return Error{EIO, "body calibration failed: " + bodyStage.calibrationError()};
+    }
+    if (!bodyStage.calibrated()) {
+        return Error{EIO, "body calibration: the capture ended before the T-pose was averaged"};
+    }
+    r.poses = bodyStage.poses();
+    r.score = scorer.score();
+    r.score.stanceChanges = bodyStage.solver().rootTracker().stanceChanges();
+    r.calibration = calibrationName(bodyStage);
+    double sum = 0;
+    double nominalSum = 0;
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        const auto& sc = b.sensors[i];
+        const Quatd trueMounting = clip->placement(sc, static_cast<int>(i)).mounting;
+        const double e =
+            bodyStage.calibration().mounting[static_cast<std::size_t>(sc.segment)].angularDistance(
+                trueMounting) *
+            180.0 / hal::kPi;
+        sum += e;
+        r.mountingErrorMaxDeg = std::max(r.mountingErrorMaxDeg, e);
+        nominalSum += sc.mounting.angularDistance(trueMounting) * 180.0 / hal::kPi;
+    }
+    if (!b.sensors.empty()) {
+        r.mountingErrorMeanDeg = sum / static_cast<double>(b.sensors.size());
+        r.nominalMountingErrorMeanDeg = nominalSum / static_cast<double>(b.sensors.size());
+    }
+    return r;
+}
+
+std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
+                             const EvaluateOptions& o) {
+    std::string out = fmt::format(
+        "clip {}: {:.2f} s scored after a {:.2f} s T-pose lead-in; board '{}' ({} sensors), "
+        "profile {}, seed {}, straps {:g} deg, skeleton {}\n",
+        r.clip, r.clipS, r.leadInS, b.name, b.sensors.size(), bs::toString(o.profile), o.seed,
+        o.strapDeg, o.measuredSkeleton ? "measured from the clip" : "from the board's subject");
+    out += fmt::format(
+        "pipeline: {} samples through fusion and body ({:.1f} s of computing); {} poses at {:g} "
+        "Hz, {} scored\n",
+        r.samples, r.wallS, r.poses, o.poseRateHz, r.score.frames);
+    out += fmt::format(
+        "body calibration: {}; mountings off the true (strapped) ones by {:.2f} deg mean, {:.2f} "
+        "deg max (the board's nominal ones: {:.2f} deg mean)\n\n",
+        r.calibration, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
+        r.nominalMountingErrorMeanDeg);
+    if (o.profile != bs::ErrorProfile::Ideal && o.sensorCalibrations.empty()) {
+        out.insert(out.size() - 1,
+                   "note: no --calibration: the chips' biases and the magnetometers' hard and "
+                   "soft iron are uncorrected, so the filters' headings (and the T-pose "
+                   "calibration) are off; `caphub calibrate gyro|accel|mag` makes the file\n");
+    }
+    out += body::formatScoreTable(r.score);
+    return out;
+}
+
+std::string evaluationJson(const std::vector<EvaluateResult>& results, const board::Board& b,
+                           const EvaluateOptions& o) {
+    // Clip and board names are file names: quoted with the few escapes JSON needs.
+    const auto quoted = [](const std::string& s) {
+        std::string q = "\"";
+        for (const char c : s) {
+            if (c == '"' || c == '\\') {
+                q += '\\';
+                q += c;
+            } else if (static_cast<unsigned char>(c) < 0x20) {
+                q += fmt::format("\\u{:04x}", static_cast<int>(c));
+            } else {
+                q += c;
+            }
+        }
+        return q + "\"";
+    };
+    std::string out = fmt::format(
+        "{{\n  \"board\": {},\n  \"profile\": \"{}\",\n  \"seed\": {},\n  \"strap_deg\": {},\n"
+        "  \"pose_rate_hz\": {},\n  \"measured_skeleton\": {},\n  \"clips\": [",
+        quoted(b.name), bs::toString(o.profile), o.seed, o.strapDeg, o.poseRateHz,
+        o.measuredSkeleton ? "true" : "false");
+    for (std::size_t c = 0; c < results.size(); ++c) {
+        const EvaluateResult& r = results[c];
+        const body::PoseScore& s = r.score;
+        out += fmt::format(
+            "{}\n    {{\n      \"clip\": {},\n      \"calibration\": {},\n"
+            "      \"samples\": {},\n      \"poses\": {},\n      \"scored_poses\": {},\n"
+            "      \"lead_in_s\": {:.6f},\n      \"clip_s\": {:.6f},\n"
+            "      \"mounting_error_mean_deg\": {:.6f},\n      \"mounting_error_max_deg\": "
+            "{:.6f},\n"
+            "      \"nominal_mounting_error_mean_deg\": {:.6f},\n"
+            "      \"mean_angle_deg\": {:.6f},\n      \"mean_position_m\": {:.6f},\n"
+            "      \"walked_m\": {:.6f},\n      \"final_drift_m\": {:.6f},\n"
+            "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n      \"joints\": [",
+            c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
+            r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
+            r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
+            s.finalDriftM, s.maxDriftM, s.stanceChanges);
+        for (int i = 0; i < body::kSegmentCount; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            out += fmt::format(
+                "{}\n        {{\"joint\": \"{}\", \"segment\": \"{}\", \"angle_deg\": {:.6f}, "
+                "\"position_m\": {:.6f}}}",
+                i == 0 ? "" : ",", body::joints()[u].name,
+                board::segmentName(static_cast<board::Segment>(i)), s.angleDeg[u], s.positionM[u]);
+        }
+        out += "\n      ]\n    }";
+    }
+    out += "\n  ]\n}\n";
+    return out;
+}
+
+}  // namespace caphub::firmware

@@ -1,0 +1,64 @@
+// The body solver scored through the whole pipeline of the virtual suit: a clip plays on the
+// suit's chip models after a T-pose lead-in, every sample goes through the FusionStage and the
+// BodyStage of `caphub run`, and each solved pose is scored against the simulation's ground
+// truth at its time (fusion/body/pose_score.h). For `caphub evaluate` and its tests.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "board/board.h"
+#include "board/sim/imu_model.h"
+#include "firmware/runtime/fusion_stage.h"
+#include "fusion/body/body_calibration.h"
+#include "fusion/body/pose_score.h"
+#include "hal/core/error.h"
+
+namespace caphub::firmware {
+
+struct EvaluateOptions {
+    std::filesystem::path bvh;
+    std::filesystem::path map;  // empty: detect a built-in joint map
+    board::sim::ErrorProfile profile = board::sim::ErrorProfile::Typical;
+    std::uint64_t seed = 1;
+    double strapDeg = 10;  // the sensors' strapping error scale (board/sim/virtual_suit.h)
+    // The body calibration in the lead-in's T-pose; none: the board's nominal mountings.
+    std::optional<body::ReferencePoseKind> calibrate = body::ReferencePoseKind::T;
+    FusionStage::Calibrations sensorCalibrations;  // per board sensor; may be empty
+    double poseRateHz = 60;
+    // true: the body stage gets the clip subject's skeleton measured from the clip (as the
+    // ideal-orientation evaluation does); false: the board's [subject] proportions.
+    bool measuredSkeleton = true;
+};
+
+struct EvaluateResult {
+    std::string clip;
+    body::PoseScore score;
+    std::uint64_t samples = 0;  // sensor samples through the pipeline
+    std::uint64_t poses = 0;    // poses the body stage solved (lead-in included)
+    double leadInS = 0;         // the T-pose hold and the blend into the clip, not scored
+    double clipS = 0;           // the clip's duration: the scored part
+    std::string calibration;    // "T-pose", "nominal mountings", ...
+    // The calibrated mountings against the sensors' true (strapped) ones, deg; and the board's
+    // nominal mountings against the same.
+    double mountingErrorMeanDeg = 0;
+    double mountingErrorMaxDeg = 0;
+    double nominalMountingErrorMeanDeg = 0;
+    double wallS = 0;
+};
+
+// Errors: a board that is not a virtual suit, a clip that cannot be read or mapped (EINVAL:
+// bad input); a body calibration that fails (EIO).
+Result<EvaluateResult> evaluateClip(const board::Board& board, const EvaluateOptions& options);
+
+// The pipeline's facts, then the per-joint table and the root line.
+std::string formatEvaluation(const EvaluateResult& r, const board::Board& board,
+                             const EvaluateOptions& options);
+
+// Every result as one JSON document.
+std::string evaluationJson(const std::vector<EvaluateResult>& results, const board::Board& board,
+                           const EvaluateOptions& options);
+
+}  // namespace caphub::firmware

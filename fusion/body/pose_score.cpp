@@ -1,0 +1,104 @@
+#include "fusion/body/pose_score.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+namespace caphub::body {
+
+void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
+    const Vec3d& trueRoot = truth.positionM[0];
+    if (!lastTrueRootM_) {
+        if (origin_ == RootOrigin::AtFirstFrame) {
+            rootOffsetM_ = trueRoot - solved.positionM[0];
+            rootOffsetM_.y() = 0;
+        }
+    } else {
+        sum_.walkedM +=
+            std::hypot(trueRoot.x() - lastTrueRootM_->x(), trueRoot.z() - lastTrueRootM_->z());
+    }
+    lastTrueRootM_ = trueRoot;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        const Quatd trueLocal =
+            i == 0 ? truth.qWorldSegment[0]
+                   : truth.qWorldSegment[static_cast<std::size_t>(parentOf(i))].conjugate() *
+                         truth.qWorldSegment[u];
+        sum_.angleDeg[u] += angleBetween(trueLocal, solved.qLocal[u]) * 180 / M_PI;
+        sum_.positionM[u] +=
+            ((solved.positionM[u] - solved.positionM[0]) - (truth.positionM[u] - trueRoot)).norm();
+    }
+    const Vec3d root = solved.positionM[0] + rootOffsetM_;
+    const double drift = std::hypot(root.x() - trueRoot.x(), root.z() - trueRoot.z());
+    sum_.finalDriftM = drift;
+    sum_.maxDriftM = std::max(sum_.maxDriftM, drift);
+    ++sum_.frames;
+}
+
+PoseScore PoseScorer::score() const {
+    PoseScore s = sum_;
+    if (s.frames == 0) {
+        return s;
+    }
+    s.meanAngleDeg = 0;
+    s.meanPositionM = 0;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        s.angleDeg[u] /= s.frames;
+        s.positionM[u] /= s.frames;
+        s.meanAngleDeg += s.angleDeg[u] / kSegmentCount;
+        if (i > 0) {
+            s.meanPositionM += s.positionM[u] / (kSegmentCount - 1);
+        }
+    }
+    return s;
+}
+
+Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
+    Dimensions d = *dimensionsFromSubject(board::SubjectConfig{});
+    if (frames.empty()) {
+        return d;
+    }
+    const auto n = static_cast<double>(frames.size());
+    for (int i = 1; i < kSegmentCount; ++i) {
+        const auto s = static_cast<std::size_t>(i);
+        const auto p = static_cast<std::size_t>(parentOf(i));
+        Vec3d sum = Vec3d::Zero();
+        for (const BodyTruth& f : frames) {
+            sum += f.qWorldSegment[p].conjugate() * (f.positionM[s] - f.positionM[p]);
+        }
+        d.offsetM[s] = sum / n;
+    }
+    for (int foot = 0; foot < 2; ++foot) {
+        const Vec3d ball = d.offsetM[static_cast<std::size_t>(
+            idx(foot == 0 ? Segment::LMiddistal : Segment::RMiddistal))];
+        const Vec3d horiz(ball.x(), 0, ball.z());
+        auto& fp = foot == 0 ? d.leftFootPointM : d.rightFootPointM;
+        fp[0] = Vec3d(0, ball.y(), 0) - 0.3 * horiz;  // heel: behind the ankle
+        fp[1] = ball;
+        fp[2] = ball + 0.4 * horiz;  // toe tip
+    }
+    return d;
+}
+
+std::string formatScoreTable(const PoseScore& s) {
+    std::string out =
+        "| joint | segment | angle error (deg) | position error (cm) |\n|---|---|---|---|\n";
+    for (int i = 0; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        out += fmt::format("| {} | {} | {:.3f} | {:.3f} |\n", joints()[u].name,
+                           board::segmentName(static_cast<Segment>(i)), s.angleDeg[u],
+                           s.positionM[u] * 100);
+    }
+    out +=
+        fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.meanAngleDeg, s.meanPositionM * 100);
+    out += fmt::format(
+        "root: true horizontal path {:.3f} m, final drift {:.3f} m ({:.2f} %), max drift {:.3f} m, "
+        "{} stance changes\n",
+        s.walkedM, s.finalDriftM, s.walkedM > 0 ? 100 * s.finalDriftM / s.walkedM : 0.0,
+        s.maxDriftM, s.stanceChanges);
+    return out;
+}
+
+}  // namespace caphub::body

@@ -1,0 +1,73 @@
+// Scores solved poses against a ground truth of the same body: per joint the angle error of the
+// joint rotation and the position error of the joint centre relative to the root, and the
+// horizontal drift of the root over the distance walked. One scoring for every evaluation (ideal
+// orientations in tests/body, the whole suit -> fusion -> body path in `caphub evaluate`).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fusion/body/kinematics.h"
+#include "fusion/body/skeleton.h"
+
+namespace caphub::body {
+
+// The true state of the body at one instant, in the skeleton world frame (docs/frames.md):
+// each segment's orientation (segment -> world) and origin (its proximal joint).
+struct BodyTruth {
+    std::array<Quatd, kSegmentCount> qWorldSegment;
+    std::array<Vec3d, kSegmentCount> positionM;
+    BodyTruth() {
+        qWorldSegment.fill(Quatd::Identity());
+        positionM.fill(Vec3d::Zero());
+    }
+};
+
+struct PoseScore {
+    int frames = 0;
+    // Per joint (segment index): mean angle error of the joint rotation (the pelvis: of its
+    // world orientation), deg; mean position error of the joint centre relative to the root, m.
+    std::array<double, kSegmentCount> angleDeg{};
+    std::array<double, kSegmentCount> positionM{};
+    double meanAngleDeg = 0;   // over the 21 joints
+    double meanPositionM = 0;  // over the 20 joints below the root
+    double walkedM = 0;        // horizontal path length of the true root
+    double finalDriftM = 0;    // horizontal distance between solved and true root at the end
+    double maxDriftM = 0;
+    int stanceChanges = 0;  // filled in by the caller (the solver's root tracker)
+};
+
+class PoseScorer {
+public:
+    // How the solved root is put on the true one. Absolute: as solved (the solver's root was
+    // reset to the true root); AtFirstFrame: the horizontal offset at the first scored frame
+    // is removed from every later one (the solver's root was reset anywhere, e.g. at a
+    // calibration before the scored part).
+    enum class RootOrigin : std::uint8_t { Absolute, AtFirstFrame };
+
+    explicit PoseScorer(RootOrigin origin = RootOrigin::Absolute) : origin_(origin) {}
+
+    void add(const Pose& solved, const BodyTruth& truth);
+    // The means over the frames added so far.
+    PoseScore score() const;
+
+private:
+    RootOrigin origin_;
+    PoseScore sum_;
+    std::optional<Vec3d> lastTrueRootM_;
+    Vec3d rootOffsetM_ = Vec3d::Zero();  // true minus solved, horizontal, at the first frame
+};
+
+// The subject's skeleton measured from true frames: each bone vector in its parent's frame,
+// averaged over the frames (segments made of several mocap joints are not perfectly rigid), the
+// foot contact points from the foot's bone; the rest (end sites, masses) from the default
+// subject. frames must not be empty.
+Dimensions measuredDimensions(const std::vector<BodyTruth>& frames);
+
+// The per-joint table (markdown) and the root's line.
+std::string formatScoreTable(const PoseScore& s);
+
+}  // namespace caphub::body
