@@ -68,4 +68,17 @@ std::optional<board::Board> loadCommandBoard(const std::string& nameOrPath) {
     return *loaded.board;
 }
 
+std::optional<board::Board> loadVirtualSuitBoard(const std::string& nameOrPath,
+                                                 std::string_view command, std::string_view needs) {
+    auto b = loadCommandBoard(nameOrPath);
+    if (b && !board::allBusesSimulated(*b)) {
+        fmt::print(stderr,
+                   "{}: '{}' has real buses; {} needs a board whose buses are all 'sim' (e.g. "
+                   "sim-suit, sim-upper10)\n",
+                   command, b->path.string(), needs);
+        return std::nullopt;
+    }
+    return b;
+}
+
 }  // namespace caphub::firmware

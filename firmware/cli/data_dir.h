@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "board/board.h"
@@ -22,6 +23,10 @@ std::filesystem::path resolveBoardFile(const std::string& nameOrPath);
 // Loads the board a command was given (a path or a shipped board's name); on errors prints each
 // ("file:line:column: key: ...") to stderr and returns nothing.
 std::optional<board::Board> loadCommandBoard(const std::string& nameOrPath);
+// The same for a command that needs a virtual suit (every bus simulated): a board with real
+// buses is refused with a message that names the command ("caphub sim") and what it does.
+std::optional<board::Board> loadVirtualSuitBoard(const std::string& nameOrPath,
+                                                 std::string_view command, std::string_view needs);
 
 // The walking clip shipped with the sources (tests/data/bvh), the virtual suit's default motion;
 // empty when it cannot be found.

@@ -36,18 +36,11 @@ struct EvaluateCliOptions {
 };
 
 int evaluate(const EvaluateCliOptions& c) {
-    const auto loaded = loadCommandBoard(c.board);
+    const auto loaded = loadVirtualSuitBoard(c.board, "caphub evaluate", "the evaluation");
     if (!loaded) {
         return kExitUsage;
     }
     const board::Board& b = *loaded;
-    if (!board::allBusesSimulated(b)) {
-        fmt::print(stderr,
-                   "caphub evaluate: '{}' has real buses; the evaluation needs a board whose "
-                   "buses are all 'sim' (e.g. sim-suit, sim-upper10)\n",
-                   b.path.string());
-        return kExitUsage;
-    }
     EvaluateOptions o;
     o.map = c.map;
     o.seed = c.seed;

@@ -120,18 +120,11 @@ int sim(const SimOptions& o) {
         fmt::print(stderr, "caphub sim: give either --sensor SEGMENT or --all\n");
         return kExitUsage;
     }
-    const auto loaded = loadCommandBoard(o.board);
+    const auto loaded = loadVirtualSuitBoard(o.board, "caphub sim", "the simulation");
     if (!loaded) {
         return kExitUsage;
     }
     const board::Board& b = *loaded;
-    if (!board::allBusesSimulated(b)) {
-        fmt::print(stderr,
-                   "caphub sim: '{}' has real buses; the simulation needs a board whose buses "
-                   "are all 'sim' (e.g. sim-suit, sim-upper10)\n",
-                   b.path.string());
-        return kExitUsage;
-    }
     std::vector<int> wanted;
     for (std::size_t i = 0; i < b.sensors.size(); ++i) {
         const auto& s = b.sensors[i];
