@@ -46,6 +46,7 @@ struct RunOptions {
     std::string out;
     std::string record;  // the recording's path; empty: a timestamped name in `out`
     int realtime = -1;   // SCHED_FIFO priority of the capture threads; -1: the board's
+    int syncMs = 200;    // the recording's durability interval
     double speed = 1.0;
     bool noRecord = false;
     std::string bvh;  // virtual suit: the motion; default: the shipped walking clip
@@ -237,9 +238,11 @@ int run(const RunOptions& o) {
         std::ifstream in(b.path);
         std::stringstream text;
         text << in.rdbuf();
+        WriterOptions wo;
+        wo.syncInterval = std::chrono::milliseconds(o.syncMs);
         auto writer = RecordingWriter::create(
             recordingPath.string(),
-            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText));
+            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText), wo);
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
             return kExitRuntime;
@@ -346,6 +349,10 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "Folder for a timestamped recording (default: the board's outputs)");
     auto* record = cmd->add_option("-r,--record", o->record,
                                    "The recording's file (.cap); an existing file is not replaced");
+    cmd->add_option("--sync-ms", o->syncMs,
+                    "The most a power cut may lose of the recording: fdatasync interval, ms")
+        ->check(CLI::Range(10, 10000))
+        ->capture_default_str();
     cmd->add_option("--realtime", o->realtime,
                     "SCHED_FIFO priority of the capture threads, 1-99 (0: normal scheduling; "
                     "default: the board's [runtime])")

@@ -124,6 +124,7 @@ std::string StatusStage::json(Timestamp now, bool running) const {
             {"records", st.records},
             {"bytes", st.bytesWritten},
             {"durable_records", st.durableRecords},
+            {"syncs", st.syncs},
             {"error", recorder_->error() == 0 ? "" : errnoText(recorder_->error())}};
     } else {
         doc["recording"] = nullptr;

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 
@@ -128,6 +129,34 @@ TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
     const CliRun none = caphub("status --file " + dir + "/absent.json");
     EXPECT_EQ(none.exitCode, 1);
     EXPECT_THAT(none.output, HasSubstr("no hub has run here"));
+}
+
+// The recording's durability interval: with --sync-ms 50 a 1 s capture is made durable about 20
+// times (each sync is counted in the status file); with 10 s, only when it closes.
+TEST(Cli, RunMakesTheRecordingDurableEverySyncInterval) {
+    const std::string dir = ::testing::TempDir() + "caphub-sync-" + std::to_string(getpid());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const auto syncs = [&](int ms) {
+        const std::string tag = std::to_string(ms);
+        const CliRun r = caphub("run --board sim-upper10 --duration 1 --no-preview --sync-ms " +
+                                tag + " --record " + dir + "/" + tag + ".cap --status-file " + dir +
+                                "/" + tag + ".json");
+        EXPECT_EQ(r.exitCode, 0) << r.output;
+        std::ifstream in(dir + "/" + tag + ".json");
+        std::stringstream text;
+        text << in.rdbuf();
+        std::smatch m;
+        const std::string s = text.str();
+        return std::regex_search(s, m, std::regex("\"syncs\": ([0-9]+)")) ? std::stoi(m[1]) : -1;
+    };
+    // At least half the nominal 20: the capture lasts 1 s of paced time, at least 1 s of real
+    // time (the interval is kept on the real clock).
+    EXPECT_GE(syncs(50), 10);
+    // One at the close, and one more only should the run take longer than 10 s.
+    const int slow = syncs(10000);
+    EXPECT_GE(slow, 1);
+    EXPECT_LE(slow, 2);
 }
 
 }  // namespace
