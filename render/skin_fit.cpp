@@ -7,6 +7,8 @@
 #include <Eigen/Dense>
 #include <fmt/format.h>
 
+#include "fusion/body/kinematics.h"
+
 namespace caphub::render {
 
 namespace {
@@ -50,14 +52,10 @@ Mat3d boneMap(const std::vector<Vec3d>& bones, const std::vector<Vec3d>& targets
 }  // namespace
 
 std::array<Vec3d, kSegmentCount> referenceOriginsM(const body::Dimensions& dims) {
-    std::array<Vec3d, kSegmentCount> origins{};
-    for (const auto& j : body::joints()) {  // tree order: parents first
-        const int s = body::idx(j.segment);
-        const auto si = static_cast<std::size_t>(s);
-        origins[si] = j.parent < 0 ? dims.offsetM[si]
-                                   : origins[static_cast<std::size_t>(j.parent)] + dims.offsetM[si];
-    }
-    return origins;
+    // The reference pose: every segment aligned with the world, the root at its height.
+    body::Pose pose;
+    body::forwardKinematics(dims, dims.offsetM[0], pose);  // offsetM[0]: the root's height
+    return pose.positionM;
 }
 
 Result<Skin> fitSkin(const Skin& skin, const std::array<Vec3d, kSegmentCount>& targetOriginsM,
