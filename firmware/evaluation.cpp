@@ -40,6 +40,30 @@ std::string calibrationName(const BodyStage& stage) {
 
 }  // namespace
 
+MountingErrors mountingErrors(
+    const body::BodyCalibration& calibration, const board::Board& b,
+    const std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)>&
+        placementOf) {
+    MountingErrors m;
+    if (b.sensors.empty()) {
+        return m;
+    }
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        const auto& sc = b.sensors[i];
+        const Quatd truth = placementOf(sc, static_cast<int>(i)).mounting;
+        const double e =
+            calibration.mounting[static_cast<std::size_t>(sc.segment)].angularDistance(truth) *
+            180.0 / hal::kPi;
+        m.meanDeg += e;
+        m.maxDeg = std::max(m.maxDeg, e);
+        m.nominalMeanDeg += sc.mounting.angularDistance(truth) * 180.0 / hal::kPi;
+    }
+    const double n = static_cast<double>(b.sensors.size());
+    m.meanDeg /= n;
+    m.nominalMeanDeg /= n;
+    return m;
+}
+
 Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
     if (!board::allBusesSimulated(b)) {
         return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
@@ -127,23 +151,10 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.score = scorer.score();
     r.score.stanceChanges = bodyStage.solver().rootTracker().stanceChanges();
     r.calibration = calibrationName(bodyStage);
-    double sum = 0;
-    double nominalSum = 0;
-    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
-        const auto& sc = b.sensors[i];
-        const Quatd trueMounting = clip->placement(sc, static_cast<int>(i)).mounting;
-        const double e =
-            bodyStage.calibration().mounting[static_cast<std::size_t>(sc.segment)].angularDistance(
-                trueMounting) *
-            180.0 / hal::kPi;
-        sum += e;
-        r.mountingErrorMaxDeg = std::max(r.mountingErrorMaxDeg, e);
-        nominalSum += sc.mounting.angularDistance(trueMounting) * 180.0 / hal::kPi;
-    }
-    if (!b.sensors.empty()) {
-        r.mountingErrorMeanDeg = sum / static_cast<double>(b.sensors.size());
-        r.nominalMountingErrorMeanDeg = nominalSum / static_cast<double>(b.sensors.size());
-    }
+    const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
+    r.mountingErrorMeanDeg = m.meanDeg;
+    r.mountingErrorMaxDeg = m.maxDeg;
+    r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
     return r;
 }
 

@@ -6,17 +6,30 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
 #include "board/board.h"
 #include "board/sim/imu_model.h"
+#include "board/sim/virtual_suit.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/pose_score.h"
 #include "hal/core/error.h"
 
 namespace caphub::firmware {
+
+// How far a body calibration's mountings are from the virtual suit's true (strapped) ones, and
+// how far the board's nominal mountings are, in degrees over the board's sensors.
+struct MountingErrors {
+    double meanDeg = 0;
+    double maxDeg = 0;
+    double nominalMeanDeg = 0;
+};
+MountingErrors mountingErrors(
+    const body::BodyCalibration& calibration, const board::Board& b,
+    const std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)>& placementOf);
 
 struct EvaluateOptions {
     std::filesystem::path bvh;

@@ -17,6 +17,7 @@
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
 #include "firmware/cli/preview_sinks.h"
+#include "firmware/evaluation.h"
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
@@ -101,24 +102,11 @@ void printBody(const BodyStage& body, const board::Board& b,
                                                  ? std::string("nominal mountings")
                                                  : std::string(body::toString(cal.method)));
         if (placementOf && cal.method != body::CalibrationMethod::None) {
-            double sum = 0;
-            double worst = 0;
-            double nominalSum = 0;
-            for (std::size_t i = 0; i < b.sensors.size(); ++i) {
-                const auto& sc = b.sensors[i];
-                const Quatd truth = placementOf(sc, static_cast<int>(i)).mounting;
-                const double e =
-                    cal.mounting[static_cast<std::size_t>(sc.segment)].angularDistance(truth) *
-                    180.0 / hal::kPi;
-                sum += e;
-                worst = std::max(worst, e);
-                nominalSum += sc.mounting.angularDistance(truth) * 180.0 / hal::kPi;
-            }
-            const double n = static_cast<double>(b.sensors.size());
+            const MountingErrors m = mountingErrors(cal, b, placementOf);
             fmt::print(
                 "; mountings off the true (strapped) ones by {:.2f} deg mean, {:.2f} deg max "
                 "(the board's nominal ones: {:.2f} deg mean)",
-                sum / n, worst, nominalSum / n);
+                m.meanDeg, m.maxDeg, m.nominalMeanDeg);
         }
     }
     fmt::print("\n{} poses; latency data-ready -> pose written p50 {:.3f} ms, p99 {:.3f} ms",
