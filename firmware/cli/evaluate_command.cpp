@@ -13,6 +13,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/suit_options.h"
 #include "firmware/evaluation.h"
 
 namespace caphub::firmware {
@@ -23,11 +24,7 @@ namespace fs = std::filesystem;
 
 struct EvaluateCliOptions {
     std::vector<std::string> bvh;
-    std::string map;
-    std::string board = "sim-suit";
-    std::string profile = "typical";
-    std::uint64_t seed = 1;
-    double strapDeg = 10;
+    SuitCliOptions suit;
     std::string calibrate = "tpose";
     std::string calibration;
     double poseRateHz = 60;
@@ -36,21 +33,18 @@ struct EvaluateCliOptions {
 };
 
 int evaluate(const EvaluateCliOptions& c) {
-    const auto loaded = loadVirtualSuitBoard(c.board, "caphub evaluate", "the evaluation");
+    const auto loaded = loadVirtualSuitBoard(c.suit.board, "caphub evaluate", "the evaluation");
     if (!loaded) {
         return kExitUsage;
     }
     const board::Board& b = *loaded;
     EvaluateOptions o;
-    o.map = c.map;
-    o.seed = c.seed;
-    o.strapDeg = c.strapDeg;
+    o.map = c.suit.map;
+    o.seed = c.suit.seed;
+    o.strapDeg = c.suit.strapDeg;
     o.poseRateHz = c.poseRateHz;
-    const auto profile = board::sim::parseErrorProfile(c.profile);
+    const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
-        fmt::print(stderr,
-                   "caphub evaluate: --profile: expected ideal, typical or harsh, got '{}'\n",
-                   c.profile);
         return kExitUsage;
     }
     o.profile = *profile;
@@ -121,17 +115,7 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
         "evaluate",
         "Score the body solver against the virtual suit's ground truth through fusion and body");
     cmd->add_option("--bvh", o->bvh, "A motion clip (BVH) to score; repeatable")->required();
-    cmd->add_option("--map", o->map, "Joint-name map (TOML); default: detect a built-in preset");
-    cmd->add_option("-b,--board", o->board, "A board whose buses are all simulated")
-        ->capture_default_str();
-    cmd->add_option("--profile", o->profile, "Sensor errors: ideal, typical, harsh")
-        ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Seed of the sensor errors and straps")
-        ->capture_default_str();
-    cmd->add_option("--strap-deg", o->strapDeg,
-                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
+    addSuitOptions(*cmd, o->suit);
     cmd->add_option("--calibrate", o->calibrate,
                     "Body calibration in the lead-in's T-pose: tpose, or none (the board's "
                     "nominal mountings)")

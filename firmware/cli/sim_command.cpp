@@ -15,6 +15,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/suit_options.h"
 #include "firmware/io/broad_csv.h"
 #include "firmware/runtime/stepped_capture.h"
 
@@ -27,11 +28,7 @@ namespace bs = board::sim;
 
 struct SimOptions {
     std::string bvh;
-    std::string map;
-    std::string board = "sim-suit";
-    std::string profile = "typical";
-    std::uint64_t seed = 1;
-    double strapDeg = 10;
+    SuitCliOptions suit;
     std::string sensor;
     bool all = false;
     std::string out;
@@ -120,7 +117,7 @@ int sim(const SimOptions& o) {
         fmt::print(stderr, "caphub sim: give either --sensor SEGMENT or --all\n");
         return kExitUsage;
     }
-    const auto loaded = loadVirtualSuitBoard(o.board, "caphub sim", "the simulation");
+    const auto loaded = loadVirtualSuitBoard(o.suit.board, "caphub sim", "the simulation");
     if (!loaded) {
         return kExitUsage;
     }
@@ -142,10 +139,8 @@ int sim(const SimOptions& o) {
                    o.sensor, names);
         return kExitUsage;
     }
-    const auto profile = bs::parseErrorProfile(o.profile);
+    const auto profile = suitProfile(o.suit, "caphub sim");
     if (!profile) {
-        fmt::print(stderr, "caphub sim: unknown profile '{}' (ideal, typical or harsh)\n",
-                   o.profile);
         return kExitUsage;
     }
 
@@ -154,10 +149,10 @@ int sim(const SimOptions& o) {
     const Timestamp start = clock.now();
     bs::ClipOptions clipOptions;
     clipOptions.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
-    clipOptions.map = o.map;
+    clipOptions.map = o.suit.map;
     clipOptions.profile = *profile;
-    clipOptions.seed = o.seed;
-    clipOptions.strapErrorDeg = o.strapDeg;
+    clipOptions.seed = o.suit.seed;
+    clipOptions.strapErrorDeg = o.suit.strapDeg;
     if (clipOptions.bvh.empty()) {
         fmt::print(stderr, "caphub sim: no motion: give --bvh FILE\n");
         return kExitUsage;
@@ -190,9 +185,10 @@ int sim(const SimOptions& o) {
         SensorStream st;
         st.sensor = i;
         st.placement = clip->placement(sc, i);
-        st.trial.name = fmt::format("caphub-sim {} sensor {} on {} (board {}, profile {}, seed {})",
-                                    clipOptions.bvh.stem().string(), sc.name,
-                                    board::segmentName(sc.segment), b.name, o.profile, o.seed);
+        st.trial.name =
+            fmt::format("caphub-sim {} sensor {} on {} (board {}, profile {}, seed {})",
+                        clipOptions.bvh.stem().string(), sc.name, board::segmentName(sc.segment),
+                        b.name, o.suit.profile, o.suit.seed);
         st.trial.rateHz = sc.achievedOdrHz;
         streamOf[static_cast<std::size_t>(i)] = static_cast<int>(streams.size());
         streams.push_back(std::move(st));
@@ -272,8 +268,9 @@ int sim(const SimOptions& o) {
     fmt::print(
         "caphub sim: {} ({:.2f} s, {} frames) on board '{}', profile {}, seed {}, straps {:g} "
         "deg{}\n",
-        clipOptions.bvh.filename().string(), simS, motion.frameCount(), b.name, o.profile, o.seed,
-        o.strapDeg, o.calibration.empty() ? "" : ", calibrated with " + o.calibration);
+        clipOptions.bvh.filename().string(), simS, motion.frameCount(), b.name, o.suit.profile,
+        o.suit.seed, o.suit.strapDeg,
+        o.calibration.empty() ? "" : ", calibrated with " + o.calibration);
     fmt::print("simulated {} sensors, {} samples, {} events in {:.3f} s: {:.1f}x real time\n\n",
                b.sensors.size(), samples, events, wallS, wallS > 0 ? simS / wallS : 0.0);
     fmt::print("{:<11} {:<13} {:>7} {:>8} {:>10} {:>10} {:>9} {:>5}  {}\n", "sensor", "segment",
@@ -316,17 +313,7 @@ void addSimCommand(CLI::App& app, int& exitCode) {
     CLI::App* cmd = app.add_subcommand(
         "sim", "Play a BVH clip on the virtual suit; write sensor streams in the BROAD layout");
     cmd->add_option("--bvh", o->bvh, "The motion (BVH); default: the shipped walking clip");
-    cmd->add_option("--map", o->map, "Joint-name map (TOML); default: detect a built-in preset");
-    cmd->add_option("-b,--board", o->board, "A board whose buses are all simulated")
-        ->capture_default_str();
-    cmd->add_option("--profile", o->profile, "Sensor errors: ideal, typical, harsh")
-        ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Seed of the sensor errors and straps")
-        ->capture_default_str();
-    cmd->add_option("--strap-deg", o->strapDeg,
-                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
+    addSuitOptions(*cmd, o->suit);
     cmd->add_option("--sensor", o->sensor, "The sensor to write: its segment or its name");
     cmd->add_flag("--all", o->all, "Write every sensor, and the ground-truth skeleton");
     cmd->add_option("--calibration", o->calibration,
