@@ -96,6 +96,8 @@ struct FilterState {
     bool atRest = false;
     bool dynamic = false;
     bool magUsed = false;
+    bool gyrClipped = false;       // the last gyroscope sample was clipped
+    std::uint32_t clipEvents = 0;  // clipping episodes so far
 };
 
 // Steady-state Kalman gains of the angle/bias model sampled every dtS: angle gain and bias gain
@@ -125,7 +127,10 @@ public:
     void resetState() { state_ = FilterState<S>{}; }
 
     // One sample of each sensor (sensor frame; rad/s, m/s^2, uT), each at its own rate.
-    void updateGyr(const Vec3<Gyr>& gyr);
+    // clipped: the chip's raw rate reached its full scale on some axis, so the rate is only a
+    // lower bound and the strapdown lost an unknown rotation; counted (clipEvents) so that the
+    // error that follows can be told from the filter's own.
+    void updateGyr(const Vec3<Gyr>& gyr, bool clipped = false);
     void updateAcc(const Vec3<Acc>& acc);
     void updateMag(const Vec3<Mag>& mag);
 
@@ -134,6 +139,7 @@ public:
     Vec3<Bias> bias() const { return state_.bias; }
     bool atRest() const { return state_.atRest; }
     bool magDisturbed() const { return state_.mag.disturbed; }
+    std::uint32_t clipEvents() const { return state_.clipEvents; }
 
     const FilterParams& params() const { return params_; }
     const FilterCoefficients<S>& coefficients() const { return coeffs_; }
@@ -187,8 +193,12 @@ void OrientationFilter<S>::setup(const FilterParams& p) {
 }
 
 template <typename S>
-void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr) {
+void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
     FilterState<S>& s = state_;
+    if (clipped && !s.gyrClipped) {
+        ++s.clipEvents;
+    }
+    s.gyrClipped = clipped;
     const Vec3<Gyr> b = castVec<Gyr>(s.bias);
     restUpdateGyr(coeffs_.rest, s.rest, gyr, b);
     s.atRest = restDetected(coeffs_.rest, s.rest);

@@ -30,8 +30,10 @@ void FusionStage::onSample(const SensorSample& s) {
     raw.magUt = in.magUt.cast<double>();
     const auto& cal = calibrations_[static_cast<std::size_t>(s.sensor)];
     const fusion::ImuSample c = cal ? cal->apply(raw) : raw;
+    const bool clipped = (in.flags & hal::ImuSample::kGyrSaturated) != 0;  // set by the driver
     f.updateGyr({static_cast<float>(c.gyrRadS.x()), static_cast<float>(c.gyrRadS.y()),
-                 static_cast<float>(c.gyrRadS.z())});
+                 static_cast<float>(c.gyrRadS.z())},
+                clipped);
     f.updateAcc({static_cast<float>(c.accMps2.x()), static_cast<float>(c.accMps2.y()),
                  static_cast<float>(c.accMps2.z())});
     if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
@@ -56,6 +58,13 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
         static_cast<std::size_t>(e.sensor) < filters_.size()) {
         valid_[static_cast<std::size_t>(e.sensor)] = false;
     }
+}
+
+std::uint32_t FusionStage::clipEvents(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size()) {
+        return 0;
+    }
+    return filters_[static_cast<std::size_t>(sensor)]->clipEvents();
 }
 
 bool FusionStage::orientation(int sensor, Eigen::Quaternionf& q) const {

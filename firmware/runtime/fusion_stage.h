@@ -31,6 +31,8 @@ public:
     // The latest orientation of a sensor (sensor -> ENU), and whether it has one.
     bool orientation(int sensor, Eigen::Quaternionf& q) const;
     std::uint64_t updates() const { return updates_; }
+    // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
+    std::uint32_t clipEvents(int sensor) const;
 
 private:
     std::vector<std::unique_ptr<Filter>> filters_;

@@ -75,6 +75,29 @@ void calibrateInPose(body::ReferencePoseKind pose, body::CalibrationMethod metho
     EXPECT_NEAR(static_cast<double>(bodyStage.poses()), 50 * (8.0 - 3.7), 15);
 }
 
+TEST(FusionStage, CountsTheEpisodesOfGyroscopeClippingPerSensor) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    firmware::SensorSample s;
+    s.sample.accMps2 = Eigen::Vector3f(0, 0, 9.81f);
+    s.sample.gyrRadps = Eigen::Vector3f(34.9f, 0, 0);
+    const auto feed = [&](int sensor, bool saturated, int n) {
+        s.sensor = sensor;
+        s.sample.flags = saturated ? hal::ImuSample::kGyrSaturated : 0;
+        for (int i = 0; i < n; ++i) {
+            fusion.onSample(s);
+        }
+    };
+    feed(3, false, 5);
+    feed(3, true, 4);
+    feed(3, false, 2);
+    feed(3, true, 1);
+    feed(5, false, 10);
+    EXPECT_EQ(fusion.clipEvents(3), 2U);
+    EXPECT_EQ(fusion.clipEvents(5), 0U);
+    EXPECT_EQ(fusion.clipEvents(99), 0U);  // no such sensor
+}
+
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     calibrateInPose(body::ReferencePoseKind::T, body::CalibrationMethod::TPose);
 }

@@ -43,6 +43,26 @@ protected:
 using Variants = ::testing::Types<FloatTypes, FixedTypes>;
 TYPED_TEST_SUITE(OrientationFilterTest, Variants);
 
+TYPED_TEST(OrientationFilterTest, CountsEachGyroscopeClippingEpisodeOnce) {
+    OrientationFilter<TypeParam> f(this->params(100.0));
+    const auto gyr = fromDoubleVec<typename TypeParam::Gyr>(34.5, 0.0, 0.0);
+    const auto run = [&](int samples, bool clipped) {
+        for (int i = 0; i < samples; ++i) {
+            f.updateGyr(gyr, clipped);
+        }
+    };
+    run(10, false);
+    EXPECT_EQ(f.clipEvents(), 0U);
+    run(5, true);  // one episode of five samples
+    EXPECT_EQ(f.clipEvents(), 1U);
+    run(3, false);
+    run(1, true);  // a second one
+    run(2, false);
+    EXPECT_EQ(f.clipEvents(), 2U);
+    f.resetState();
+    EXPECT_EQ(f.clipEvents(), 0U);
+}
+
 TYPED_TEST(OrientationFilterTest, InclinationConvergesToTruthWithin2sAtRest) {
     test::SynthConfig c;
     const Quatd q0 = fromAxisAngle<double>(Vec3d(1.0, 0.5, 0.2), 35.0 * kDeg);
