@@ -151,6 +151,9 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.score = scorer.score();
     r.score.stanceChanges = bodyStage.solver().rootTracker().stanceChanges();
     r.calibration = calibrationName(bodyStage);
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        r.gyroClipEvents.push_back(fusion.clipEvents(static_cast<int>(i)));
+    }
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
     r.mountingErrorMaxDeg = m.maxDeg;
@@ -174,6 +177,20 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         "deg max (the board's nominal ones: {:.2f} deg mean)\n\n",
         r.calibration, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
         r.nominalMountingErrorMeanDeg);
+    std::string clipped;
+    for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {
+        if (r.gyroClipEvents[i] > 0) {
+            clipped +=
+                fmt::format("{}{} ({} time{})", clipped.empty() ? "" : ", ", b.sensors[i].name,
+                            r.gyroClipEvents[i], r.gyroClipEvents[i] == 1 ? "" : "s");
+        }
+    }
+    if (!clipped.empty()) {
+        out.insert(out.size() - 1,
+                   fmt::format("gyroscope clipped (a rate beyond its full scale; the filter lost "
+                               "an unknown rotation there): {}\n",
+                               clipped));
+    }
     if (o.profile != bs::ErrorProfile::Ideal && o.sensorCalibrations.empty()) {
         out.insert(out.size() - 1,
                    "note: no --calibration: the chips' biases and the magnetometers' hard and "
@@ -218,11 +235,14 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"nominal_mounting_error_mean_deg\": {:.6f},\n"
             "      \"mean_angle_deg\": {:.6f},\n      \"mean_position_m\": {:.6f},\n"
             "      \"walked_m\": {:.6f},\n      \"final_drift_m\": {:.6f},\n"
-            "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n      \"joints\": [",
+            "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n"
+            "      \"independent_mean_angle_deg\": {:.6f},\n"
+            "      \"independent_mean_position_m\": {:.6f},\n      \"joints\": [",
             c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
             r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
             r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
-            s.finalDriftM, s.maxDriftM, s.stanceChanges);
+            s.finalDriftM, s.maxDriftM, s.stanceChanges, s.independentMeanAngleDeg,
+            s.independentMeanPositionM);
         for (int i = 0; i < body::kSegmentCount; ++i) {
             const auto u = static_cast<std::size_t>(i);
             out += fmt::format(
@@ -231,7 +251,19 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
                 i == 0 ? "" : ",", body::joints()[u].name,
                 board::segmentName(static_cast<board::Segment>(i)), s.angleDeg[u], s.positionM[u]);
         }
-        out += "\n      ]\n    }";
+        out += "\n      ],\n      \"independent_joints\": [";
+        for (std::size_t j = 0; j < body::independentJoints().size(); ++j) {
+            out += fmt::format(
+                "{}\n        {{\"joint\": \"{}\", \"angle_deg\": {:.6f}, \"position_m\": {:.6f}}}",
+                j == 0 ? "" : ",", body::independentJoints()[j].name, s.independentAngleDeg[j],
+                s.independentPositionM[j]);
+        }
+        out += "\n      ],\n      \"gyro_clipped\": {";
+        for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {
+            out += fmt::format("{}{}: {}", i == 0 ? "" : ", ", quoted(b.sensors[i].name),
+                               r.gyroClipEvents[i]);
+        }
+        out += "}\n    }";
     }
     out += "\n  ]\n}\n";
     return out;

@@ -9,6 +9,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "board/board.h"
 #include "board/sim/imu_model.h"
@@ -59,6 +60,8 @@ struct EvaluateResult {
     double mountingErrorMeanDeg = 0;
     double mountingErrorMaxDeg = 0;
     double nominalMountingErrorMeanDeg = 0;
+    // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
+    std::vector<std::uint32_t> gyroClipEvents;
     double wallS = 0;
 };
 

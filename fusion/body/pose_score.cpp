@@ -29,6 +29,21 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
         sum_.positionM[u] +=
             ((solved.positionM[u] - solved.positionM[0]) - (truth.positionM[u] - trueRoot)).norm();
     }
+    for (std::size_t j = 0; j < independentJoints().size(); ++j) {
+        const IndependentJoint& ij = independentJoints()[j];
+        const auto d = static_cast<std::size_t>(ij.distal);
+        const auto c = static_cast<std::size_t>(ij.centre);
+        Quatd trueRot = truth.qWorldSegment[d];
+        Quatd solvedRot = solved.qWorld[d];
+        if (ij.proximal >= 0) {
+            const auto p = static_cast<std::size_t>(ij.proximal);
+            trueRot = truth.qWorldSegment[p].conjugate() * trueRot;
+            solvedRot = solved.qWorld[p].conjugate() * solvedRot;
+        }
+        sum_.independentAngleDeg[j] += angleBetween(trueRot, solvedRot) * 180 / M_PI;
+        sum_.independentPositionM[j] +=
+            ((solved.positionM[c] - solved.positionM[0]) - (truth.positionM[c] - trueRoot)).norm();
+    }
     const Vec3d root = solved.positionM[0] + rootOffsetM_;
     const double drift = std::hypot(root.x() - trueRoot.x(), root.z() - trueRoot.z());
     sum_.finalDriftM = drift;
@@ -50,6 +65,16 @@ PoseScore PoseScorer::score() const {
         s.meanAngleDeg += s.angleDeg[u] / kSegmentCount;
         if (i > 0) {
             s.meanPositionM += s.positionM[u] / (kSegmentCount - 1);
+        }
+    }
+    s.independentMeanAngleDeg = 0;
+    s.independentMeanPositionM = 0;
+    for (std::size_t j = 0; j < independentJoints().size(); ++j) {
+        s.independentAngleDeg[j] /= s.frames;
+        s.independentPositionM[j] /= s.frames;
+        s.independentMeanAngleDeg += s.independentAngleDeg[j] / kIndependentJointCount;
+        if (independentJoints()[j].proximal >= 0) {
+            s.independentMeanPositionM += s.independentPositionM[j] / (kIndependentJointCount - 1);
         }
     }
     return s;
@@ -93,6 +118,19 @@ std::string formatScoreTable(const PoseScore& s) {
     }
     out +=
         fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.meanAngleDeg, s.meanPositionM * 100);
+    out +=
+        "the paper's 17 joints (lumbar and cervical as whole rotations, no toes):\n\n"
+        "| joint | from - to | angle error (deg) | position error (cm) |\n|---|---|---|---|\n";
+    for (std::size_t j = 0; j < independentJoints().size(); ++j) {
+        const IndependentJoint& ij = independentJoints()[j];
+        out += fmt::format(
+            "| {} | {} - {} | {:.3f} | {:.3f} |\n", ij.name,
+            ij.proximal < 0 ? "world" : board::segmentName(static_cast<Segment>(ij.proximal)),
+            board::segmentName(static_cast<Segment>(ij.distal)), s.independentAngleDeg[j],
+            s.independentPositionM[j] * 100);
+    }
+    out += fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.independentMeanAngleDeg,
+                       s.independentMeanPositionM * 100);
     out += fmt::format(
         "root: true horizontal path {:.3f} m, final drift {:.3f} m ({:.2f} %), max drift {:.3f} m, "
         "{} stance changes\n",

@@ -34,8 +34,14 @@ struct PoseScore {
     std::array<double, kSegmentCount> positionM{};
     double meanAngleDeg = 0;   // over the 21 joints
     double meanPositionM = 0;  // over the 20 joints below the root
-    double walkedM = 0;        // horizontal path length of the true root
-    double finalDriftM = 0;    // horizontal distance between solved and true root at the end
+    // The same for the paper's 17 independent joints (independentJoints(): the lumbar and
+    // cervical joints as the whole pelvis -> t12 and t12 -> skull rotations, no toes).
+    std::array<double, kIndependentJointCount> independentAngleDeg{};
+    std::array<double, kIndependentJointCount> independentPositionM{};
+    double independentMeanAngleDeg = 0;   // over the 17
+    double independentMeanPositionM = 0;  // over the 16 below the root
+    double walkedM = 0;                   // horizontal path length of the true root
+    double finalDriftM = 0;  // horizontal distance between solved and true root at the end
     double maxDriftM = 0;
     int stanceChanges = 0;  // filled in by the caller (the solver's root tracker)
 };
@@ -67,7 +73,8 @@ private:
 // subject. frames must not be empty.
 Dimensions measuredDimensions(const std::vector<BodyTruth>& frames);
 
-// The per-joint table (markdown) and the root's line.
+// The per-joint tables (markdown; the 21 segments' joints, then the paper's 17) and the root's
+// line.
 std::string formatScoreTable(const PoseScore& s);
 
 }  // namespace caphub::body

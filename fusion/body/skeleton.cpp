@@ -119,6 +119,25 @@ const std::array<JointInfo, kSegmentCount>& joints() {
     return kJoints;
 }
 
+const std::array<IndependentJoint, kIndependentJointCount>& independentJoints() {
+    static const std::array<IndependentJoint, kIndependentJointCount> kIndependent = [] {
+        std::array<IndependentJoint, kIndependentJointCount> out{};
+        std::size_t n = 0;
+        for (const JointInfo& j : kJoints) {
+            const int seg = idx(j.segment);
+            if (j.segment == S::T12) {
+                out[n++] = {"vl5+vt12", idx(S::Pelvis), seg, idx(S::L5)};
+            } else if (j.segment == S::Skull) {
+                out[n++] = {"vc7+skullbase", idx(S::T12), seg, idx(S::C7)};
+            } else if (j.kind == JointKind::Root || j.kind == JointKind::Driven) {
+                out[n++] = {j.name, j.parent, seg, seg};
+            }
+        }
+        return out;
+    }();
+    return kIndependent;
+}
+
 const JointInfo& jointInfo(Segment s) {
     return kJoints[static_cast<std::size_t>(idx(s))];
 }

@@ -52,6 +52,20 @@ const std::array<JointInfo, kSegmentCount>& joints();
 const JointInfo& jointInfo(Segment s);
 int parentOf(int segment);
 
+// The paper's 17 independent joints (docs/skeleton.md, "The paper's 17 joints on 21 segments"):
+// the rotation from the proximal segment's frame to the distal one's, centred at the origin of
+// `centre`. The lumbar joint spans pelvis -> t12 (vl5 + vt12, centred at l5's origin) and the
+// cervical one t12 -> skull (vc7 + skullbase, at c7's origin); the root's proximal is -1 (its
+// rotation is the pelvis' world orientation). The toes' fixed joints are not among them.
+struct IndependentJoint {
+    std::string_view name;
+    int proximal;
+    int distal;
+    int centre;
+};
+inline constexpr int kIndependentJointCount = 17;
+const std::array<IndependentJoint, kIndependentJointCount>& independentJoints();
+
 // Points that are not a segment's origin: the tips of the chains (the Jacobian's end
 // effectors) and the foot points used for ground contact.
 enum class EndEffector : int { Head, LHand, RHand, LFoot, RFoot };

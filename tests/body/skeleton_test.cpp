@@ -42,6 +42,36 @@ TEST(Skeleton, SeventeenIndependentJointsOverTwentyOneSegments) {
     EXPECT_EQ(fixed, 2);
 }
 
+TEST(Skeleton, ThePapersJointsSpanTheSpineAndLeaveOutTheToes) {
+    const auto& ij = independentJoints();
+    int lumbar = 0;
+    int cervical = 0;
+    for (const IndependentJoint& j : ij) {
+        EXPECT_NE(j.distal, idx(S::LMiddistal));
+        EXPECT_NE(j.distal, idx(S::RMiddistal));
+        EXPECT_NE(j.distal, idx(S::L5));
+        EXPECT_NE(j.distal, idx(S::C7));
+        if (j.proximal < 0) {
+            EXPECT_EQ(j.distal, idx(S::Pelvis));
+            continue;
+        }
+        if (j.distal == idx(S::T12)) {
+            ++lumbar;
+            EXPECT_EQ(j.proximal, idx(S::Pelvis));
+            EXPECT_EQ(j.centre, idx(S::L5));
+        } else if (j.distal == idx(S::Skull)) {
+            ++cervical;
+            EXPECT_EQ(j.proximal, idx(S::T12));
+            EXPECT_EQ(j.centre, idx(S::C7));
+        } else {
+            EXPECT_EQ(j.proximal, parentOf(j.distal)) << j.name;
+            EXPECT_EQ(j.centre, j.distal) << j.name;
+        }
+    }
+    EXPECT_EQ(lumbar, 1);
+    EXPECT_EQ(cervical, 1);
+}
+
 TEST(Skeleton, JointsCarryHAnimNames) {
     EXPECT_EQ(jointInfo(S::Pelvis).name, "humanoid_root");
     EXPECT_EQ(jointInfo(S::LForearm).name, "l_elbow");

@@ -117,6 +117,7 @@ TEST(EvaluateCli, PrintsThePipelineFactsAndThePerJointTable) {
               std::string::npos)
         << r.output;
     EXPECT_NE(r.output.find("| l_knee | l_calf |"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("| vl5+vt12 | pelvis - t12 |"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("| **mean** |"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("root: true horizontal path"), std::string::npos) << r.output;
     std::ifstream in(json);
@@ -124,6 +125,9 @@ TEST(EvaluateCli, PrintsThePipelineFactsAndThePerJointTable) {
     text << in.rdbuf();
     EXPECT_NE(text.str().find("\"clip\": \"cmu_12_01_walk.bvh\""), std::string::npos) << text.str();
     EXPECT_NE(text.str().find("\"joint\": \"r_metatarsophalangeal\""), std::string::npos);
+    EXPECT_NE(text.str().find("\"joint\": \"vl5+vt12\""), std::string::npos);
+    EXPECT_NE(text.str().find("\"independent_mean_angle_deg\": "), std::string::npos);
+    EXPECT_NE(text.str().find("\"gyro_clipped\": {\"pelvis\": 0,"), std::string::npos);
     fs::remove(json);
 }
 
