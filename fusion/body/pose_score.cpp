@@ -32,7 +32,6 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     for (std::size_t j = 0; j < independentJoints().size(); ++j) {
         const IndependentJoint& ij = independentJoints()[j];
         const auto d = static_cast<std::size_t>(ij.distal);
-        const auto c = static_cast<std::size_t>(ij.centre);
         Quatd trueRot = truth.qWorldSegment[d];
         Quatd solvedRot = solved.qWorld[d];
         if (ij.proximal >= 0) {
@@ -41,8 +40,6 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
             solvedRot = solved.qWorld[p].conjugate() * solvedRot;
         }
         sum_.independentAngleDeg[j] += angleBetween(trueRot, solvedRot) * 180 / M_PI;
-        sum_.independentPositionM[j] +=
-            ((solved.positionM[c] - solved.positionM[0]) - (truth.positionM[c] - trueRoot)).norm();
     }
     const Vec3d root = solved.positionM[0] + rootOffsetM_;
     const double drift = std::hypot(root.x() - trueRoot.x(), root.z() - trueRoot.z());
@@ -71,7 +68,9 @@ PoseScore PoseScorer::score() const {
     s.independentMeanPositionM = 0;
     for (std::size_t j = 0; j < independentJoints().size(); ++j) {
         s.independentAngleDeg[j] /= s.frames;
-        s.independentPositionM[j] /= s.frames;
+        // A joint's centre is a segment origin: its error is that segment's row.
+        s.independentPositionM[j] =
+            s.positionM[static_cast<std::size_t>(independentJoints()[j].centre)];
         s.independentMeanAngleDeg += s.independentAngleDeg[j] / kIndependentJointCount;
         if (independentJoints()[j].proximal >= 0) {
             s.independentMeanPositionM += s.independentPositionM[j] / (kIndependentJointCount - 1);
