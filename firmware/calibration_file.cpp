@@ -18,12 +18,15 @@ namespace {
 //   format = 1
 //   [sensors.l_forearm]
 //   gyro_bias_rad_s = [0.001, -0.002, 0.0005]
+//   gyro_matrix = [[1.01, 0.02, 0.0], [-0.01, 0.99, 0.01], [0.0, 0.0, 1.0]]
 //   acc_offset_m_s2 = [0.05, -0.02, 0.1]
-//   acc_scale = [1.002, 0.998, 1.001]
+//   acc_matrix = [[0.998, 0.01, 0.0], [0.01, 1.002, 0.0], [0.0, 0.0, 0.999]]
 //   mag_hard_iron_ut = [12.0, -3.5, 40.2]
 //   mag_soft_iron = [[1.01, 0.02, 0.0], [0.02, 0.99, 0.01], [0.0, 0.01, 1.0]]
 //   mag_quality_pct = 0.8
 //   mag_coverage = 0.92
+// Files of earlier builds give the accelerometer's per-axis scale instead of its matrix:
+//   acc_scale = [1.002, 0.998, 1.001]   (acc = (raw - offset) / scale)
 
 // A TOML key: bare when it can be, else a basic string with " and \ escaped.
 std::string tomlKey(const std::string& name) {
@@ -115,11 +118,30 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
                 if ((v->array() <= 0.0).any()) {
                     return at(origin, node, fmt::format("'{}': expected positive scales", full));
                 }
-                c.accScale = *v;
+                if (t.contains("acc_matrix")) {
+                    return at(origin, node,
+                              fmt::format("'{}': give acc_scale or acc_matrix, not both", full));
+                }
+                c.accMatrix = v->cwiseInverse().asDiagonal();
             } else {
                 c.accOffsetMps2 = *v;
             }
             c.hasAccel = true;
+        } else if (key == "acc_matrix" || key == "gyro_matrix") {
+            auto m = mat3(origin, node, full);
+            if (!m) {
+                return m.error();
+            }
+            if (!(std::abs(m->determinant()) > 1e-9)) {
+                return at(origin, node, fmt::format("'{}': the matrix is singular", full));
+            }
+            if (key == "acc_matrix") {
+                c.accMatrix = *m;
+                c.hasAccel = true;
+            } else {
+                c.gyroMatrix = *m;
+                c.hasGyroAxes = true;
+            }
         } else if (key == "mag_hard_iron_ut") {
             auto v = vec3(origin, node, full);
             if (!v) {
@@ -145,9 +167,9 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             (key == "mag_quality_pct" ? c.magQualityPct : c.magCoverage) = *v;
         } else {
             return at(origin, node,
-                      fmt::format("unknown key '{}' (expected gyro_bias_rad_s, acc_offset_m_s2, "
-                                  "acc_scale, mag_hard_iron_ut, mag_soft_iron, mag_quality_pct, "
-                                  "mag_coverage)",
+                      fmt::format("unknown key '{}' (expected gyro_bias_rad_s, gyro_matrix, "
+                                  "acc_offset_m_s2, acc_matrix, acc_scale, mag_hard_iron_ut, "
+                                  "mag_soft_iron, mag_quality_pct, mag_coverage)",
                                   full));
         }
     }
@@ -218,21 +240,26 @@ std::string formatCalibration(const CalibrationSet& set) {
     auto v3 = [](const Vec3d& v) {
         return fmt::format("[{:.17g}, {:.17g}, {:.17g}]", v.x(), v.y(), v.z());
     };
+    auto m3 = [&v3](const Eigen::Matrix3d& m) {
+        return fmt::format("[{}, {}, {}]", v3(m.row(0).transpose()), v3(m.row(1).transpose()),
+                           v3(m.row(2).transpose()));
+    };
     std::string out = fmt::format("# caphub sensor calibration\nformat = {}\n", kCalibrationFormat);
     for (const auto& [name, c] : set) {
         out += fmt::format("\n[sensors.{}]\n", tomlKey(name));
         if (c.hasGyro) {
             out += fmt::format("gyro_bias_rad_s = {}\n", v3(c.gyroBiasRadS));
         }
+        if (c.hasGyroAxes) {
+            out += fmt::format("gyro_matrix = {}\n", m3(c.gyroMatrix));
+        }
         if (c.hasAccel) {
-            out += fmt::format("acc_offset_m_s2 = {}\nacc_scale = {}\n", v3(c.accOffsetMps2),
-                               v3(c.accScale));
+            out += fmt::format("acc_offset_m_s2 = {}\nacc_matrix = {}\n", v3(c.accOffsetMps2),
+                               m3(c.accMatrix));
         }
         if (c.hasMag) {
-            const auto& m = c.magSoftIron;
             out += fmt::format("mag_hard_iron_ut = {}\n", v3(c.magHardIronUt));
-            out += fmt::format("mag_soft_iron = [{}, {}, {}]\n", v3(m.row(0).transpose()),
-                               v3(m.row(1).transpose()), v3(m.row(2).transpose()));
+            out += fmt::format("mag_soft_iron = {}\n", m3(c.magSoftIron));
             out += fmt::format("mag_quality_pct = {:.17g}\nmag_coverage = {:.17g}\n",
                                c.magQualityPct, c.magCoverage);
         }

@@ -31,8 +31,9 @@ run)
     caphub=build/release/bin/caphub
     board=board/sim-suit.toml
     "$caphub" boards validate "$board" --quiet
-    # The main job on the default virtual suit (17 sensors): calibrate the sensors (gyro at
-    # rest, accelerometer in six positions, magnetometer turned through every direction), then
+    # The main job on the default virtual suit (17 sensors): calibrate the sensors (gyro bias
+    # at rest, accelerometer and gyroscope axes in fourteen positions, magnetometer turned
+    # through every direction), then
     # capture paced to real time: the subject calibrates in the T-pose, then walks; every sample,
     # orientation, pose and event is recorded and preview frames are rendered. Then the
     # recording is described and exported to BVH and glTF.

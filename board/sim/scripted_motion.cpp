@@ -30,6 +30,8 @@ std::string_view toString(Script s) {
             return "rest";
         case Script::SixPositions:
             return "six positions";
+        case Script::FourteenPositions:
+            return "fourteen positions";
         case Script::Tumble:
             return "tumble";
     }
@@ -54,6 +56,43 @@ Quatd ScriptedMotion::position(int k) {
     }
 }
 
+Vec3d ScriptedMotion::fourteenUp(int k) {
+    // Faces and corners alternate, so that the turns between them run about axes spread over
+    // the sensor frame (a gyroscope calibration needs turns about every axis).
+    static constexpr int kUp[kFourteen][3] = {
+        {0, 0, 1},   {1, 1, 1},  {1, 0, 0},  {1, -1, -1}, {0, 0, -1}, {-1, 1, -1}, {0, 1, 0},
+        {-1, -1, 1}, {-1, 0, 0}, {1, 1, -1}, {0, -1, 0},  {1, -1, 1}, {-1, 1, 1},  {-1, -1, -1}};
+    const int i = std::clamp(k, 0, kFourteen - 1);
+    return Vec3d(kUp[i][0], kUp[i][1], kUp[i][2]).normalized();
+}
+
+Quatd ScriptedMotion::fourteenPosition(int k) {
+    // The world is Y up. A face pointing down has no unique shortest turn; about the world X
+    // axis then.
+    const Vec3d up = fourteenUp(k);
+    if (up.dot(Vec3d::UnitY()) < -0.999) {
+        return about(Vec3d::UnitX(), kPi);
+    }
+    return Quatd::FromTwoVectors(up, Vec3d::UnitY());
+}
+
+int ScriptedMotion::positionCount(Script script) {
+    switch (script) {
+        case Script::SixPositions:
+            return 6;
+        case Script::FourteenPositions:
+            return kFourteen;
+        case Script::Rest:
+        case Script::Tumble:
+            break;
+    }
+    return 0;
+}
+
+Quatd ScriptedMotion::positionOf(Script script, int k) {
+    return script == Script::FourteenPositions ? fourteenPosition(k) : position(k);
+}
+
 ScriptedMotion::ScriptedMotion(Script script, const ScriptTiming& timing)
     : script_(script), timing_(timing) {
     double seconds = 0;
@@ -62,8 +101,11 @@ ScriptedMotion::ScriptedMotion(Script script, const ScriptTiming& timing)
             seconds = 0;
             break;
         case Script::SixPositions:
-            seconds = 6 * timing.holdS + 5 * timing.moveS;
+        case Script::FourteenPositions: {
+            const int n = positionCount(script);
+            seconds = n * timing.holdS + (n - 1) * timing.moveS;
             break;
+        }
         case Script::Tumble:
             seconds = timing.tumbleS;
             break;
@@ -79,13 +121,15 @@ void ScriptedMotion::evaluate(board::Segment, std::int64_t tNs, SegmentState& ou
         case Script::Rest:
             out.qWorldSegment = position(0);
             return;
-        case Script::SixPositions: {
+        case Script::SixPositions:
+        case Script::FourteenPositions: {
             // Hold k over [k (hold + move), k (hold + move) + hold), then move to k + 1.
+            const int last = positionCount(script_) - 1;
             const double cycle = timing_.holdS + timing_.moveS;
-            const int k = std::min(5, static_cast<int>(t / cycle));
+            const int k = std::min(last, static_cast<int>(t / cycle));
             const double inCycle = t - k * cycle;
-            const Quatd from = position(k);
-            if (k == 5 || inCycle <= timing_.holdS) {
+            const Quatd from = positionOf(script_, k);
+            if (k == last || inCycle <= timing_.holdS) {
                 out.qWorldSegment = from;
                 return;
             }
@@ -96,7 +140,7 @@ void ScriptedMotion::evaluate(board::Segment, std::int64_t tNs, SegmentState& ou
             const double du = 30 * tau * tau * (1 - tau) * (1 - tau) / timing_.moveS;
             const double ddu =
                 60 * tau * (1 - tau) * (1 - 2 * tau) / (timing_.moveS * timing_.moveS);
-            const Eigen::AngleAxisd turn(from.conjugate() * position(k + 1));
+            const Eigen::AngleAxisd turn(from.conjugate() * positionOf(script_, k + 1));
             const Vec3d v = turn.axis() * turn.angle();  // body frame
             out.qWorldSegment = (from * about(turn.axis(), u * turn.angle())).normalized();
             out.omegaRadS = du * v;

@@ -1,7 +1,7 @@
 // Scripted motions of a sensor off the body, for calibrating on the virtual suit: lying still,
-// turned through six positions (each axis up and down), or tumbled slowly through every
-// direction. A rigid body at a fixed place on a table; smooth, so that the gyro and accelerometer
-// signals the IMU model derives from it are physical.
+// turned through six positions (each axis up and down) or fourteen (each face and each corner
+// up), or tumbled slowly through every direction. A rigid body at a fixed place on a table; smooth,
+// so that the gyro and accelerometer signals the IMU model derives from it are physical.
 #pragma once
 
 #include <cstdint>
@@ -12,16 +12,18 @@
 namespace caphub::board::sim {
 
 enum class Script {
-    Rest,          // level (z up), facing north
-    SixPositions,  // +z, -z, +x, -x, +y, -y up in turn, each held, moved smoothly between
-    Tumble,        // turning about a horizontal axis and about the body's x axis at once
+    Rest,               // level (z up), facing north
+    SixPositions,       // +z, -z, +x, -x, +y, -y up in turn, each held, moved smoothly between
+    FourteenPositions,  // the six faces and the eight corners of the sensor's box up in turn,
+                        // faces and corners alternating, each held, moved smoothly between
+    Tumble,             // turning about a horizontal axis and about the body's x axis at once
 };
 
 std::string_view toString(Script s);
 
 struct ScriptTiming {
-    double holdS = 3.0;     // six positions: time still in each position
-    double moveS = 1.5;     // six positions: time to turn from one position to the next
+    double holdS = 3.0;     // positions: time still in each position
+    double moveS = 1.5;     // positions: time to turn from one position to the next
     double tumbleS = 60.0;  // tumble: its length
 };
 
@@ -37,6 +39,15 @@ public:
 
     // The orientation sensor -> world of the six positions, in order.
     static Quatd position(int k);
+    // The fourteen positions: the sensor-frame direction that points up in each, in order, and
+    // the orientation sensor -> world that turns it up.
+    static constexpr int kFourteen = 14;
+    static Vec3d fourteenUp(int k);
+    static Quatd fourteenPosition(int k);
+    // The number of held positions of a script (0 for rest and tumble) and the orientation of
+    // position k.
+    static int positionCount(Script script);
+    static Quatd positionOf(Script script, int k);
 
 private:
     Script script_;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <optional>
 
+#include <Eigen/SVD>
 #include <fmt/format.h>
 
 #include "board/loader.h"
@@ -21,6 +22,7 @@
 #include "fusion/calibration/accel_six_position.h"
 #include "fusion/calibration/ellipsoid_fit.h"
 #include "fusion/calibration/gyro_bias.h"
+#include "fusion/calibration/imu_axes.h"
 
 namespace caphub::firmware {
 
@@ -72,8 +74,10 @@ double defaultDurationS(Kind k, const bs::ScriptTiming& timing) {
     switch (k) {
         case Kind::Gyro:
             return 5.0;
-        case Kind::Accel:
-            return 6 * timing.holdS + 5 * timing.moveS;
+        case Kind::Accel: {
+            const int n = bs::ScriptedMotion::positionCount(bs::Script::FourteenPositions);
+            return n * timing.holdS + (n - 1) * timing.moveS;
+        }
         case Kind::Mag:
             return timing.tumbleS;
     }
@@ -85,7 +89,7 @@ Result<Streams> collectVirtual(const board::Board& b, Kind kind, double duration
                                bs::ErrorProfile profile, std::uint64_t seed) {
     bs::ScriptOptions so;
     so.script = kind == Kind::Gyro    ? bs::Script::Rest
-                : kind == Kind::Accel ? bs::Script::SixPositions
+                : kind == Kind::Accel ? bs::Script::FourteenPositions
                                       : bs::Script::Tumble;
     so.profile = profile;
     so.seed = seed;
@@ -157,6 +161,77 @@ std::string vec(const Vec3d& v, double scale, int decimals) {
                        decimals, v.z() * scale, decimals);
 }
 
+double departure(const Eigen::Matrix3d& m) {
+    return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
+// The accelerometer and gyroscope axes of one sensor from its held positions and the turns
+// between them; with too few positions for the axes, the six-position per-axis calibration.
+// Prints the sensor's row; returns why it failed, or nothing.
+std::string calibrateAxes(const std::string& name, const Streams& st, std::size_t i,
+                          fusion::SensorCalibration& cal) {
+    const auto held = fusion::findHeldPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
+    if (!held) {
+        return held.error().message;
+    }
+    std::vector<Vec3d> means;
+    for (const auto& h : *held) {
+        means.push_back(h.meanAccMps2);
+    }
+    fusion::AccelAxesResult acc;
+    std::optional<fusion::GyroAxesResult> gyro;
+    if (static_cast<int>(means.size()) >= fusion::AccelAxesParams{}.minPositions) {
+        auto a = fusion::calibrateAccelAxes(means);
+        if (!a) {
+            return a.error().message;
+        }
+        acc = *a;
+        auto g = fusion::calibrateGyroAxes(st.gyr[i], st.rateHz[i], *held, acc);
+        if (!g) {
+            return g.error().message;
+        }
+        gyro = *g;
+    } else {
+        auto six = fusion::findSixPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
+        if (!six) {
+            return fmt::format("{} held positions (nine or more give the axes); {}", means.size(),
+                               six.error().message);
+        }
+        auto r = fusion::calibrateAccelSixPosition(*six);
+        if (!r) {
+            return r.error().message;
+        }
+        acc.offsetMps2 = r->offsetMps2;
+        acc.matrix = r->scale.cwiseInverse().asDiagonal();
+        acc.residualMps2 = r->residualMps2;
+        acc.positions = 6;
+    }
+    cal.hasAccel = true;
+    cal.accOffsetMps2 = acc.offsetMps2;
+    cal.accMatrix = acc.matrix;
+    cal.hasGyroAxes = gyro.has_value();
+    cal.gyroMatrix = gyro ? gyro->matrix : Eigen::Matrix3d::Identity();
+    fmt::print(
+        "{:<11} {:>4} {:>29} {:>7.3f} {:>9.4f} {:>7} {:>13}", name, means.size(),
+        vec(acc.offsetMps2, 1.0, 4), 100.0 * departure(acc.matrix), acc.residualMps2,
+        gyro ? fmt::format("{:.3f}", 100.0 * departure(gyro->matrix)) : "-",
+        gyro ? fmt::format("{:.2f} -> {:.2f}", gyro->uncalibratedDeg, gyro->residualDeg) : "-");
+    if (st.virtualSuit) {
+        // The part reads raw = M f + b. Calibrated, P = A M must be a rotation (the frame the
+        // accelerometer now defines); the gyroscope's G Mg must be that same rotation.
+        const bs::ImuConstants& t = st.truth[i];
+        const Eigen::Matrix3d p = acc.matrix * t.accelMatrix;
+        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(p, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        const Eigen::Matrix3d frame = svd.matrixU() * svd.matrixV().transpose();
+        const double accAxes =
+            (frame.transpose() * p - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+        const double gyroAxes = (cal.gyroMatrix * t.gyroMatrix - frame).cwiseAbs().maxCoeff();
+        fmt::print(" {:>9.4f} {:>11.3f} {:>11.3f}", (acc.offsetMps2 - t.accelBiasMps2).norm(),
+                   100.0 * accAxes, 100.0 * gyroAxes);
+    }
+    return {};
+}
+
 // Runs one kind of calibration on every sensor; returns the number of sensors calibrated.
 int calibrateAll(Kind kind, const board::Board& b, const Streams& st, CalibrationSet& set) {
     int done = 0;
@@ -167,8 +242,13 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
                        "std dps", truth ? fmt::format(" {:>26} {:>9}", "true bias", "error") : "");
             break;
         case Kind::Accel:
-            fmt::print("{:<11} {:>29} {:>26} {:>9}{}\n", "sensor", "offset m/s^2", "scale", "resid",
-                       truth ? fmt::format(" {:>29} {:>9}", "true offset", "error") : "");
+            // Axes: the accelerometer's scale and cross-axis terms and the gyroscope's (against
+            // the accelerometer's frame), each as its matrix's largest departure from the identity.
+            fmt::print(
+                "{:<11} {:>4} {:>29} {:>7} {:>9} {:>7} {:>13}{}\n", "sensor", "pos", "offset m/s^2",
+                "axes %", "resid", "gyro %", "turns deg",
+                truth ? fmt::format(" {:>9} {:>11} {:>11}", "off err", "acc axes %", "gyro axes %")
+                      : "");
             break;
         case Kind::Mag:
             fmt::print("{:<11} {:>8} {:>26} {:>9} {:>8} {:>9}{}\n", "sensor", "readings",
@@ -198,28 +278,9 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
                 }
                 break;
             }
-            case Kind::Accel: {
-                auto means = fusion::findSixPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
-                if (!means) {
-                    failure = means.error().message;
-                    break;
-                }
-                const auto r = fusion::calibrateAccelSixPosition(*means);
-                if (!r) {
-                    failure = r.error().message;
-                    break;
-                }
-                cal.hasAccel = true;
-                cal.accOffsetMps2 = r->offsetMps2;
-                cal.accScale = r->scale;
-                fmt::print("{:<11} {:>29} {:>26} {:>9.4f}", name, vec(r->offsetMps2, 1.0, 4),
-                           vec(r->scale, 1.0, 5), r->residualMps2);
-                if (truth) {
-                    const Vec3d& t = st.truth[i].accelBiasMps2;
-                    fmt::print(" {:>29} {:>9.4f}", vec(t, 1.0, 4), (r->offsetMps2 - t).norm());
-                }
+            case Kind::Accel:
+                failure = calibrateAxes(name, st, i, cal);
                 break;
-            }
             case Kind::Mag: {
                 const auto r = fusion::fitEllipsoid(st.mag[i]);
                 if (!r) {
@@ -276,12 +337,13 @@ int calibrate(Kind kind, const CalibrateOptions& o) {
 
     const double durationS = o.durationS > 0 ? o.durationS : defaultDurationS(kind, {});
     const bool sim = board::allBusesSimulated(b);
-    static constexpr const char* kWhat[] = {"gyroscope bias", "accelerometer offset and scale",
+    static constexpr const char* kWhat[] = {"gyroscope bias",
+                                            "accelerometer offset and axes, gyroscope axes",
                                             "magnetometer hard and soft iron"};
     static constexpr const char* kTodo[] = {
         "lay every sensor still (on a table, off the body)",
-        "turn each sensor so that each of its faces points up in turn (six positions), holding "
-        "each still for 2-3 s",
+        "turn each sensor so that each of its six faces and eight corners points up in turn "
+        "(fourteen positions), holding each still for 2-3 s and turning it smoothly between",
         "turn each sensor slowly through every direction, away from metal and magnets"};
     const int k = static_cast<int>(kind);
     fmt::print("caphub calibrate: {} of {} sensors of '{}', {:g} s\n", kWhat[k], b.sensors.size(),
@@ -326,8 +388,9 @@ void addCalibrateCommand(CLI::App& app, int& exitCode) {
     static constexpr Sub kSubs[] = {
         {"gyro", Kind::Gyro, "Gyroscope bias: every sensor lying still (default 5 s)"},
         {"accel", Kind::Accel,
-         "Accelerometer offset and scale: each sensor turned through six positions (default "
-         "25.5 s)"},
+         "Accelerometer offset and axes, gyroscope axes: each sensor held in fourteen positions "
+         "(each face and corner up) and turned between them (default 61.5 s; six positions give "
+         "the accelerometer's per-axis scale only)"},
         {"mag", Kind::Mag,
          "Magnetometer hard and soft iron: each sensor turned through every direction (default "
          "60 s)"},

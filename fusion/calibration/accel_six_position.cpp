@@ -56,50 +56,23 @@ Result<AccelSixPositionResult> calibrateAccelSixPosition(const std::array<Vec3d,
     return r;
 }
 
-namespace {
-
-// Per-axis mean and largest per-axis standard deviation of a window.
-void windowStats(std::span<const Vec3d> v, Vec3d& mean, double& maxStd) {
-    mean = Vec3d::Zero();
-    for (const auto& x : v) {
-        mean += x;
-    }
-    mean /= static_cast<double>(v.size());
-    Vec3d var = Vec3d::Zero();
-    for (const auto& x : v) {
-        var += (x - mean).cwiseAbs2();
-    }
-    maxStd = std::sqrt(var.maxCoeff() / static_cast<double>(v.size()));
-}
-
-}  // namespace
-
 Result<std::array<Vec3d, 6>> findSixPositions(std::span<const Vec3d> acc,
                                               std::span<const Vec3d> gyr, double rateHz,
                                               const StillPositionParams& p) {
-    constexpr double kRadToDeg = 57.29577951308232;
-    if (acc.size() != gyr.size() || rateHz <= 0) {
-        return Error{EINVAL, "accel six-position: accelerometer and gyroscope streams differ"};
+    auto runs = findStillIntervals(acc, gyr, rateHz, p);
+    if (!runs) {
+        return runs.error();
     }
-    const auto n = static_cast<std::size_t>(std::max(2.0, std::round(p.windowS * rateHz)));
+    // Every still run counts towards the position its largest axis points to.
     std::array<Vec3d, 6> sum;
     sum.fill(Vec3d::Zero());
     std::array<std::size_t, 6> count{};
-    for (std::size_t start = 0; start + n <= acc.size(); start += n) {
-        Vec3d accMean;
-        Vec3d gyrMean;
-        double accStd = 0;
-        double gyrStd = 0;
-        windowStats(acc.subspan(start, n), accMean, accStd);
-        windowStats(gyr.subspan(start, n), gyrMean, gyrStd);
-        if (accStd > p.maxAccStdMps2 || gyrStd * kRadToDeg > p.maxGyroStdDps) {
-            continue;
-        }
+    for (const auto& r : *runs) {
         int axis = 0;
-        accMean.cwiseAbs().maxCoeff(&axis);
-        const auto slot = static_cast<std::size_t>(2 * axis + (accMean[axis] > 0 ? 0 : 1));
-        sum[slot] += accMean * static_cast<double>(n);
-        count[slot] += n;
+        r.meanAccMps2.cwiseAbs().maxCoeff(&axis);
+        const auto slot = static_cast<std::size_t>(2 * axis + (r.meanAccMps2[axis] > 0 ? 0 : 1));
+        sum[slot] += r.meanAccMps2 * static_cast<double>(r.size());
+        count[slot] += r.size();
     }
     static constexpr const char* kNames[6] = {"+x", "-x", "+y", "-y", "+z", "-z"};
     std::string missing;

@@ -5,6 +5,7 @@
 #include <array>
 #include <span>
 
+#include "fusion/calibration/still_intervals.h"
 #include "hal/core/error.h"
 #include "hal/core/quaternion.h"
 
@@ -27,13 +28,6 @@ Result<AccelSixPositionResult> calibrateAccelSixPosition(const std::array<Vec3d,
 
 // Finding the six positions in a stream: the sensor was turned so that each axis pointed up and
 // down in turn, held still a while in each (in any order, with any motion in between).
-struct StillPositionParams {
-    double windowS = 0.5;         // s, length of the windows the stream is cut into
-    double maxGyroStdDps = 0.5;   // deg/s, per-axis standard deviation of a still window
-    double maxAccStdMps2 = 0.15;  // m/s^2, per-axis standard deviation of a still window
-    double minStillS = 1.0;       // s, least still time needed in each position
-};
-
 // The mean specific force of the still windows in each of the six positions, ordered +x, -x,
 // +y, -y, +z, -z up. Refused, naming the positions missing, when one has too little still time.
 Result<std::array<Vec3d, 6>> findSixPositions(std::span<const Vec3d> accMps2,

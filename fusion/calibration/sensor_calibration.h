@@ -1,5 +1,6 @@
 // The calibration of one 9-axis sensor and how it is applied to raw samples before the filter:
-// gyroscope bias, accelerometer offset and per-axis scale, magnetometer hard and soft iron.
+// gyroscope bias and axes, accelerometer offset and axes (scale and cross-axis), magnetometer
+// hard and soft iron.
 #pragma once
 
 #include <Eigen/Core>
@@ -11,10 +12,12 @@ namespace caphub::fusion {
 struct SensorCalibration {
     bool hasGyro = false;
     Vec3d gyroBiasRadS = Vec3d::Zero();  // subtracted from the rate
+    bool hasGyroAxes = false;
+    Eigen::Matrix3d gyroMatrix = Eigen::Matrix3d::Identity();  // gyr = matrix * (raw - bias)
 
     bool hasAccel = false;
-    Vec3d accOffsetMps2 = Vec3d::Zero();  // acc = (raw - offset) / scale, per axis
-    Vec3d accScale = Vec3d::Ones();
+    Vec3d accOffsetMps2 = Vec3d::Zero();                      // acc = matrix * (raw - offset)
+    Eigen::Matrix3d accMatrix = Eigen::Matrix3d::Identity();  // diagonal: per-axis 1 / scale
 
     bool hasMag = false;
     Vec3d magHardIronUt = Vec3d::Zero();  // mag = softIron * (raw - hardIron)
@@ -28,8 +31,11 @@ struct SensorCalibration {
         if (hasGyro) {
             s.gyrRadS = raw.gyrRadS - gyroBiasRadS;
         }
+        if (hasGyroAxes) {
+            s.gyrRadS = gyroMatrix * s.gyrRadS;
+        }
         if (hasAccel) {
-            s.accMps2 = (raw.accMps2 - accOffsetMps2).cwiseQuotient(accScale);
+            s.accMps2 = accMatrix * (raw.accMps2 - accOffsetMps2);
         }
         if (hasMag) {
             s.magUt = magSoftIron * (raw.magUt - magHardIronUt);

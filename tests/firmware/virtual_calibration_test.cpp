@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <vector>
 
+#include <Eigen/SVD>
 #include <gtest/gtest.h>
 
 #include "board/loader.h"
@@ -13,6 +14,7 @@
 #include "fusion/calibration/accel_six_position.h"
 #include "fusion/calibration/ellipsoid_fit.h"
 #include "fusion/calibration/gyro_bias.h"
+#include "fusion/calibration/imu_axes.h"
 
 namespace {
 
@@ -93,6 +95,36 @@ TEST(VirtualCalibration, SixPositionsGiveTheTrueAccelerometerOffsetAndScale) {
         EXPECT_LT((est->offsetMps2 - r.truth[i].accelBiasMps2).norm(), 0.01) << i;
         EXPECT_LT((est->scale - r.truth[i].accelMatrix.diagonal()).cwiseAbs().maxCoeff(), 0.001)
             << i;
+    }
+}
+
+TEST(VirtualCalibration, FourteenPositionsGiveTheTrueAccelerometerAndGyroscopeAxes) {
+    const Recorded r = record(bs::Script::FourteenPositions, 14 * 3.0 + 13 * 1.5);
+    for (std::size_t i = 0; i < r.truth.size(); ++i) {
+        const double rateHz = r.board.sensors[i].achievedOdrHz;
+        const auto held = fusion::findHeldPositions(r.acc[i], r.gyr[i], rateHz);
+        ASSERT_TRUE(held) << held.error().message;
+        ASSERT_EQ(held->size(), 14u) << i;
+        std::vector<Vec3d> means;
+        for (const auto& h : *held) {
+            means.push_back(h.meanAccMps2);
+        }
+        const auto acc = fusion::calibrateAccelAxes(means);
+        ASSERT_TRUE(acc) << acc.error().message;
+        EXPECT_LT((acc->offsetMps2 - r.truth[i].accelBiasMps2).norm(), 0.01) << i;
+        // The part reads raw = M f + b: the calibrated A M must be a rotation (the frame the
+        // accelerometer defines) within 0.1 % (its scale and cross-axis errors are 0.5 % and 2 %).
+        const Eigen::Matrix3d p = acc->matrix * r.truth[i].accelMatrix;
+        EXPECT_LT((p.transpose() * p - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-3)
+            << i;
+        // The gyroscope (1.5 % scale, 2 % cross-axis) must read rates in that same frame:
+        // G Mg = the rotation of A M, within 0.2 %.
+        const auto gyro = fusion::calibrateGyroAxes(r.gyr[i], rateHz, *held, *acc);
+        ASSERT_TRUE(gyro) << gyro.error().message;
+        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(p, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        const Eigen::Matrix3d frame = svd.matrixU() * svd.matrixV().transpose();
+        EXPECT_LT((gyro->matrix * r.truth[i].gyroMatrix - frame).cwiseAbs().maxCoeff(), 2e-3) << i;
+        EXPECT_LT(gyro->residualDeg, 0.1 * gyro->uncalibratedDeg) << i;
     }
 }
 

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 namespace caphub::firmware {
@@ -15,7 +16,9 @@ CalibrationSet sampleSet() {
     a.gyroBiasRadS = Vec3d(0.001, -0.0021, 1.0 / 3.0);
     a.hasAccel = true;
     a.accOffsetMps2 = Vec3d(0.05, -0.02, 0.1);
-    a.accScale = Vec3d(1.002, 0.998, 1.001);
+    a.accMatrix << 0.998, 0.01, 0.0, 0.01, 1.002, -0.003, 0.0, -0.003, 0.999;
+    a.hasGyroAxes = true;
+    a.gyroMatrix << 1.01, 0.02, 0.0, -0.01, 0.99, 0.01, 0.004, 0.0, 1.0 / 3.0;
     a.hasMag = true;
     a.magHardIronUt = Vec3d(12.0, -3.5, 40.2);
     a.magSoftIron << 1.01, 0.02, 0.0, 0.02, 0.99, 0.01, 0.0, 0.01, 1.0;
@@ -40,13 +43,33 @@ TEST(CalibrationFile, ReadsBackWhatItWroteExactly) {
     const auto& a = back->at("l_forearm");
     const auto& e = set.at("l_forearm");
     EXPECT_EQ(a.gyroBiasRadS, e.gyroBiasRadS);  // 17 significant digits: exact
-    EXPECT_EQ(a.accScale, e.accScale);
+    EXPECT_EQ(a.accOffsetMps2, e.accOffsetMps2);
+    EXPECT_EQ(a.accMatrix, e.accMatrix);
+    EXPECT_TRUE(a.hasGyroAxes);
+    EXPECT_EQ(a.gyroMatrix, e.gyroMatrix);
     EXPECT_EQ(a.magSoftIron, e.magSoftIron);
     EXPECT_EQ(a.magCoverage, e.magCoverage);
     const auto& b = back->at("pelvis 2");
     EXPECT_TRUE(b.hasGyro);
+    EXPECT_FALSE(b.hasGyroAxes);
     EXPECT_FALSE(b.hasAccel);
     EXPECT_FALSE(b.hasMag);
+}
+
+TEST(CalibrationFile, ReadsThePerAxisScaleOfEarlierFilesAsADiagonalMatrix) {
+    auto r = parseCalibration(
+        "format = 1\n[sensors.a]\nacc_offset_m_s2 = [0.1, 0, 0]\nacc_scale = [2, 4, 0.5]\n",
+        "c.toml");
+    ASSERT_TRUE(r) << r.error().message;
+    const auto& a = r->at("a");
+    EXPECT_TRUE(a.hasAccel);
+    EXPECT_EQ(a.accMatrix, Eigen::Matrix3d(Eigen::Vector3d(0.5, 0.25, 2.0).asDiagonal()));
+    auto both = parseCalibration(
+        "format = 1\n[sensors.a]\nacc_scale = [1, 1, 1]\n"
+        "acc_matrix = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\n",
+        "c.toml");
+    ASSERT_FALSE(both);
+    EXPECT_NE(both.error().message.find("not both"), std::string::npos) << both.error().message;
 }
 
 TEST(CalibrationFile, NamesTheLineAndKeyOfAWrongValue) {
@@ -76,11 +99,16 @@ TEST(CalibrationFile, ReportsTomlSyntaxErrorsWithTheirPosition) {
     EXPECT_NE(r.error().message.find("c.toml:2:"), std::string::npos) << r.error().message;
 }
 
-TEST(CalibrationFile, RefusesASingularSoftIronMatrix) {
-    auto r = parseCalibration(
-        "format = 1\n[sensors.a]\nmag_soft_iron = [[1, 0, 0], [0, 0, 0], [0, 0, 1]]\n", "c.toml");
-    ASSERT_FALSE(r);
-    EXPECT_NE(r.error().message.find("singular"), std::string::npos) << r.error().message;
+TEST(CalibrationFile, RefusesASingularMatrix) {
+    for (const char* key : {"mag_soft_iron", "acc_matrix", "gyro_matrix"}) {
+        auto r = parseCalibration(fmt::format("format = 1\n[sensors.a]\n{} = [[1, 0, 0], [0, 0, "
+                                              "0], [0, 0, 1]]\n",
+                                              key),
+                                  "c.toml");
+        ASSERT_FALSE(r) << key;
+        EXPECT_NE(r.error().message.find("singular"), std::string::npos) << r.error().message;
+        EXPECT_NE(r.error().message.find(key), std::string::npos) << r.error().message;
+    }
 }
 
 }  // namespace

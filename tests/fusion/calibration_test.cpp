@@ -1,5 +1,6 @@
-// Sensor calibration algorithms: gyroscope bias at rest, six-position accelerometer, magnetometer
-// ellipsoid fit with its coverage check and quality figure.
+// Sensor calibration algorithms: gyroscope bias at rest, six-position accelerometer, the
+// accelerometer and gyroscope axes from held positions and turns, magnetometer ellipsoid fit
+// with its coverage check and quality figure.
 #include <random>
 
 #include <gtest/gtest.h>
@@ -7,6 +8,7 @@
 #include "fusion/calibration/accel_six_position.h"
 #include "fusion/calibration/ellipsoid_fit.h"
 #include "fusion/calibration/gyro_bias.h"
+#include "fusion/calibration/imu_axes.h"
 #include "fusion/calibration/sensor_calibration.h"
 
 namespace caphub::fusion {
@@ -186,6 +188,135 @@ TEST(AccelSixPositions, TooShortAHoldNamesTheMissingPosition) {
     ASSERT_FALSE(means);
     EXPECT_NE(means.error().message.find("-x up"), std::string::npos) << means.error().message;
     EXPECT_EQ(means.error().message.find("+x up"), std::string::npos) << means.error().message;
+}
+
+// The fourteen directions of a cube's faces and corners, faces and corners alternating.
+std::vector<Vec3d> facesAndCorners() {
+    const int up[14][3] = {{0, 0, 1},   {1, 1, 1},  {1, 0, 0},   {1, -1, -1}, {0, 0, -1},
+                           {-1, 1, -1}, {0, 1, 0},  {-1, -1, 1}, {-1, 0, 0},  {1, 1, -1},
+                           {0, -1, 0},  {1, -1, 1}, {-1, 1, 1},  {-1, -1, -1}};
+    std::vector<Vec3d> out;
+    for (const auto& u : up) {
+        out.push_back(Vec3d(u[0], u[1], u[2]).normalized());
+    }
+    return out;
+}
+
+// A part's axes: scale errors on the diagonal, cross-axis terms off it (not symmetric).
+Eigen::Matrix3d partAxes() {
+    Eigen::Matrix3d m;
+    m << 1.012, 0.018, -0.011, -0.006, 0.987, 0.021, 0.014, -0.019, 1.006;
+    return m;
+}
+
+TEST(AccelAxes, HeldPositionsGiveTheOffsetAndUndoScaleAndCrossAxis) {
+    const Vec3d offset(0.3, -0.45, 0.2);
+    const Eigen::Matrix3d m = partAxes();
+    std::vector<Vec3d> means;
+    for (const Vec3d& u : facesAndCorners()) {
+        means.push_back(m * (9.81 * u) + offset);
+    }
+    auto r = calibrateAccelAxes(means);
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_LT((r->offsetMps2 - offset).norm(), 1e-9);  // exact data, exact fit
+    // A M is a rotation: the non-symmetric part of M only turns the frame, which no gravity
+    // reading can tell; the fit takes the symmetric one and leaves that rotation.
+    const Eigen::Matrix3d p = r->matrix * m;
+    EXPECT_LT((p.transpose() * p - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((r->matrix - r->matrix.transpose()).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_LT(r->residualMps2, 1e-9);
+}
+
+TEST(AccelAxes, RefusesFewerThanNinePositions) {
+    std::vector<Vec3d> means;
+    for (const Vec3d& u : facesAndCorners()) {
+        if (means.size() < 8) {
+            means.push_back(9.81 * u);
+        }
+    }
+    auto r = calibrateAccelAxes(means);
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("8 held positions"), std::string::npos) << r.error().message;
+}
+
+// A session at 100 Hz: the fourteen positions, each held 2 s, with 1 s turns at a steady rate
+// between them. The part reads gyr = G (omega) + bias and acc = f (ideal), with noise.
+struct AxesSession {
+    std::vector<Vec3d> acc;
+    std::vector<Vec3d> gyr;
+};
+
+AxesSession axesSession(const Eigen::Matrix3d& gyroAxes, const Vec3d& bias) {
+    constexpr double kRate = 100.0;
+    std::mt19937 rng(21);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    AxesSession s;
+    const Vec3d up = Vec3d::UnitZ();  // world up
+    const auto dirs = facesAndCorners();
+    Quatd q = Quatd::FromTwoVectors(dirs[0], up);  // sensor -> world
+    for (std::size_t k = 0; k < dirs.size(); ++k) {
+        for (int i = 0; i < 200; ++i) {
+            s.acc.push_back(9.81 * (q.conjugate() * up) +
+                            0.01 * Vec3d(noise(rng), noise(rng), noise(rng)));
+            s.gyr.push_back(bias + 0.001 * Vec3d(noise(rng), noise(rng), noise(rng)));
+        }
+        if (k + 1 == dirs.size()) {
+            break;
+        }
+        const Quatd next = Quatd::FromTwoVectors(dirs[k + 1], up);
+        const Eigen::AngleAxisd turn(q.conjugate() * next);  // body frame
+        const Vec3d omega = turn.axis() * turn.angle();      // rad/s over one second
+        for (int i = 0; i < static_cast<int>(kRate); ++i) {
+            q = q * Quatd(Eigen::AngleAxisd(turn.angle() / kRate, turn.axis()));
+            s.acc.push_back(9.81 * (q.conjugate() * up));
+            s.gyr.push_back(gyroAxes * omega + bias);
+        }
+        q = next;
+    }
+    return s;
+}
+
+TEST(GyroAxes, TurnsBetweenHeldPositionsUndoScaleAndCrossAxis) {
+    const Eigen::Matrix3d g = partAxes();
+    const Vec3d bias = Vec3d(0.5, -1.2, 2.0) * kDeg;
+    const AxesSession s = axesSession(g, bias);
+    auto held = findHeldPositions(s.acc, s.gyr, 100.0);
+    ASSERT_TRUE(held) << held.error().message;
+    ASSERT_EQ(held->size(), 14u);
+    std::vector<Vec3d> means;
+    for (const auto& h : *held) {
+        means.push_back(h.meanAccMps2);
+    }
+    auto acc = calibrateAccelAxes(means);
+    ASSERT_TRUE(acc) << acc.error().message;
+    auto r = calibrateGyroAxes(s.gyr, 100.0, *held, *acc);
+    ASSERT_TRUE(r) << r.error().message;
+    EXPECT_EQ(r->turns, 13);
+    // The mean of 14 x 100 held samples of 1 mrad/s (0.057 deg/s) noise: 0.0015 deg/s per axis.
+    EXPECT_LT((r->biasRadS - bias).norm() / kDeg, 0.01);
+    // Each turn is 45-180 deg; a 2 % axis error misses it by about a degree, and the fit by the
+    // noise of the held positions' directions (0.01 m/s^2 over 100 samples: 0.006 deg each)
+    // and of the bias (0.003 deg over a 1 s turn): about 0.01 deg.
+    EXPECT_GT(r->uncalibratedDeg, 0.5);
+    EXPECT_LT(r->residualDeg, 0.03);
+    EXPECT_LT((r->matrix * g - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 2e-4)
+        << r->matrix * g;
+}
+
+TEST(GyroAxes, RefusesASessionWithTooFewTurns) {
+    const AxesSession s = axesSession(Eigen::Matrix3d::Identity(), Vec3d::Zero());
+    auto held = findHeldPositions(s.acc, s.gyr, 100.0);
+    ASSERT_TRUE(held) << held.error().message;
+    std::vector<Vec3d> means;
+    for (const auto& h : *held) {
+        means.push_back(h.meanAccMps2);
+    }
+    auto acc = calibrateAccelAxes(means);
+    ASSERT_TRUE(acc) << acc.error().message;
+    const std::vector<StillInterval> four(held->begin(), held->begin() + 4);
+    auto r = calibrateGyroAxes(s.gyr, 100.0, four, *acc);
+    ASSERT_FALSE(r);
+    EXPECT_NE(r.error().message.find("3 turns"), std::string::npos) << r.error().message;
 }
 
 }  // namespace

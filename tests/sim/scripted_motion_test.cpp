@@ -1,10 +1,12 @@
-// The calibration scripts of the virtual suit: the six positions put each axis up in turn, and
-// every script's angular rate and acceleration are the derivatives of its orientation, so that
-// the IMU model's gyro and accelerometer readings are physical.
+// The calibration scripts of the virtual suit: the six positions put each axis up in turn, the
+// fourteen each face and corner, and every script's angular rate and acceleration are the
+// derivatives of its orientation, so that the IMU model's gyro and accelerometer readings are
+// physical.
 #include "board/sim/scripted_motion.h"
 
 #include <cmath>
 #include <cstdlib>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -42,8 +44,32 @@ TEST(ScriptedMotion, SixPositionsHoldEachAxisUpAndDown) {
     EXPECT_NEAR(static_cast<double>(m.durationNs()) * 1e-9, 6 * 3.0 + 5 * 1.5, 1e-9);
 }
 
+TEST(ScriptedMotion, FourteenPositionsHoldEachFaceAndCornerUpOnce) {
+    const ScriptedMotion m(Script::FourteenPositions, ScriptTiming{});
+    const Vec3d up(0, 1, 0);
+    std::vector<Vec3d> seen;
+    for (int k = 0; k < ScriptedMotion::kFourteen; ++k) {
+        const auto t = static_cast<std::int64_t>((k * 4.5 + 1.5) * 1e9);
+        const SegmentState s = at(m, t);
+        const Vec3d u = ScriptedMotion::fourteenUp(k);
+        EXPECT_LT((s.qWorldSegment * u - up).norm(), 1e-12) << "position " << k;
+        EXPECT_EQ(s.omegaRadS.norm(), 0.0);
+        // Up in the sensor frame: a face (one non-zero axis) or a corner (three equal ones).
+        const Vec3d sensorUp = s.qWorldSegment.conjugate() * up;
+        const Vec3d a = sensorUp.cwiseAbs();
+        const bool face = std::abs(a.maxCoeff() - 1.0) < 1e-9;
+        const bool corner = (a.array() - 1.0 / std::sqrt(3.0)).abs().maxCoeff() < 1e-9;
+        EXPECT_TRUE(face || corner) << "position " << k;
+        for (const Vec3d& v : seen) {
+            EXPECT_GT((v - sensorUp).norm(), 0.5) << "position " << k << " repeats one";
+        }
+        seen.push_back(sensorUp);
+    }
+    EXPECT_NEAR(static_cast<double>(m.durationNs()) * 1e-9, 14 * 3.0 + 13 * 1.5, 1e-9);
+}
+
 TEST(ScriptedMotion, RatesAreTheDerivativesOfTheOrientation) {
-    for (Script script : {Script::SixPositions, Script::Tumble}) {
+    for (Script script : {Script::SixPositions, Script::FourteenPositions, Script::Tumble}) {
         const ScriptedMotion m(script, ScriptTiming{});
         for (std::int64_t t = 100 * kMs; t < m.durationNs() - 100 * kMs; t += 37 * kMs) {
             const SegmentState s = at(m, t);
@@ -56,7 +82,7 @@ TEST(ScriptedMotion, RatesAreTheDerivativesOfTheOrientation) {
             const std::int64_t inCycle = t % 4'500'000'000;
             const bool nearStep =
                 std::abs(inCycle - 3'000'000'000) < kMs || inCycle < kMs || inCycle > 4'499 * kMs;
-            if (script == Script::SixPositions && nearStep) {
+            if (script != Script::Tumble && nearStep) {
                 continue;
             }
             const Vec3d dOmega =

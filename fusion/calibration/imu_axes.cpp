@@ -1,0 +1,199 @@
+#include "fusion/calibration/imu_axes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <fmt/format.h>
+
+#include "fusion/calibration/ellipsoid_fit.h"
+
+namespace caphub::fusion {
+
+namespace {
+
+constexpr double kRadToDeg = 57.29577951308232;
+
+// The largest deviation of a calibration matrix from the identity.
+double axisError(const Eigen::Matrix3d& m) {
+    return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
+// One turn between two held positions: the bias-corrected raw rates, the gravity direction
+// before and after (calibrated accelerometer, sensor frame).
+struct Turn {
+    std::vector<Vec3d> rates;
+    Vec3d upBefore = Vec3d::Zero();
+    Vec3d upAfter = Vec3d::Zero();
+};
+
+// Where the turn, integrated with rates matrix * raw, carries the first gravity direction: the
+// sensor frame at the end, seen from the start, is the product of each sample's rotation.
+Vec3d predictedUp(const Turn& turn, const Eigen::Matrix3d& matrix, double dtS) {
+    Quatd q = Quatd::Identity();
+    for (const Vec3d& raw : turn.rates) {
+        const Vec3d phi = matrix * raw * dtS;
+        const double angle = phi.norm();
+        const Quatd step =
+            angle > 0.0 ? Quatd(Eigen::AngleAxisd(angle, phi / angle)) : Quatd::Identity();
+        q = q * step;
+    }
+    return q.conjugate() * turn.upBefore;
+}
+
+// The stacked misses (predicted minus measured direction) of every turn.
+Eigen::VectorXd misses(const std::vector<Turn>& turns, const Eigen::Matrix3d& matrix, double dtS) {
+    Eigen::VectorXd r(3 * static_cast<Eigen::Index>(turns.size()));
+    for (std::size_t i = 0; i < turns.size(); ++i) {
+        r.segment<3>(3 * static_cast<Eigen::Index>(i)) =
+            predictedUp(turns[i], matrix, dtS) - turns[i].upAfter;
+    }
+    return r;
+}
+
+// RMS of the turns' misses as angles, degrees (a miss of chord c is an angle of 2 asin(c / 2)).
+double rmsMissDeg(const Eigen::VectorXd& r) {
+    double sum = 0.0;
+    const auto n = r.size() / 3;
+    for (Eigen::Index i = 0; i < n; ++i) {
+        const double a = 2.0 * std::asin(std::min(1.0, r.segment<3>(3 * i).norm() / 2.0));
+        sum += a * a;
+    }
+    return n > 0 ? std::sqrt(sum / static_cast<double>(n)) * kRadToDeg : 0.0;
+}
+
+Eigen::Matrix3d fromParams(const Eigen::Matrix<double, 9, 1>& x) {
+    Eigen::Matrix3d m;
+    m << x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8];
+    return m;
+}
+
+}  // namespace
+
+Result<AccelAxesResult> calibrateAccelAxes(std::span<const Vec3d> pos, const AccelAxesParams& p) {
+    if (static_cast<int>(pos.size()) < p.minPositions) {
+        return Error{EINVAL, fmt::format("accel axes: {} held positions, need at least {} (hold "
+                                         "the sensor still with each face and each corner up)",
+                                         pos.size(), p.minPositions)};
+    }
+    EllipsoidFitParams fit;
+    fit.fieldNormUt = p.gravityMps2;
+    fit.minSamples = p.minPositions;
+    fit.minCoverage = 0.0;  // judged below, by the residual and the matrix itself
+    fit.maxQualityPct = 100.0;
+    auto e = fitEllipsoid(pos, fit);
+    if (!e) {
+        return Error{EINVAL, fmt::format("accel axes: {}", e.error().message)};
+    }
+    AccelAxesResult r;
+    r.offsetMps2 = e->hardIronUt;
+    r.matrix = e->softIron;
+    r.positions = static_cast<int>(pos.size());
+    double sum = 0.0;
+    for (const Vec3d& a : pos) {
+        const double d = (r.matrix * (a - r.offsetMps2)).norm() - p.gravityMps2;
+        sum += d * d;
+    }
+    r.residualMps2 = std::sqrt(sum / static_cast<double>(pos.size()));
+    if (axisError(r.matrix) > p.maxAxisError) {
+        return Error{EINVAL, fmt::format("accel axes: the fitted matrix is {:.3f} off the identity "
+                                         "(at most {:.3f}): the positions are too few or too alike",
+                                         axisError(r.matrix), p.maxAxisError)};
+    }
+    if (r.residualMps2 > p.maxResidualMps2) {
+        return Error{EINVAL, fmt::format("accel axes: the positions miss gravity by {:.3f} m/s^2 "
+                                         "RMS after the fit (at most {:.3f}): was the sensor "
+                                         "moving while held?",
+                                         r.residualMps2, p.maxResidualMps2)};
+    }
+    return r;
+}
+
+Result<GyroAxesResult> calibrateGyroAxes(std::span<const Vec3d> gyr, double rateHz,
+                                         std::span<const StillInterval> positions,
+                                         const AccelAxesResult& accel, const GyroAxesParams& p) {
+    constexpr double kDegToRad = 1.0 / kRadToDeg;
+    if (!(rateHz > 0)) {
+        return Error{EINVAL, "gyro axes: the rate must be positive"};
+    }
+    GyroAxesResult r;
+    std::size_t held = 0;
+    for (const auto& s : positions) {
+        if (s.end > gyr.size() || s.begin >= s.end) {
+            return Error{EINVAL, "gyro axes: a held position lies outside the stream"};
+        }
+        r.biasRadS += s.meanGyrRadS * static_cast<double>(s.size());
+        held += s.size();
+    }
+    if (held > 0) {
+        r.biasRadS /= static_cast<double>(held);
+    }
+    auto up = [&accel](const StillInterval& s) {
+        return (accel.matrix * (s.meanAccMps2 - accel.offsetMps2)).normalized();
+    };
+    std::vector<Turn> turns;
+    for (std::size_t i = 0; i + 1 < positions.size(); ++i) {
+        Turn t;
+        t.upBefore = up(positions[i]);
+        t.upAfter = up(positions[i + 1]);
+        const double angle = std::acos(std::clamp(t.upBefore.dot(t.upAfter), -1.0, 1.0));
+        if (angle < p.minTurnDeg * kDegToRad) {
+            continue;
+        }
+        for (std::size_t k = positions[i].end; k < positions[i + 1].begin; ++k) {
+            t.rates.push_back(gyr[k] - r.biasRadS);
+        }
+        turns.push_back(std::move(t));
+    }
+    r.turns = static_cast<int>(turns.size());
+    if (r.turns < p.minTurns) {
+        return Error{EINVAL, fmt::format("gyro axes: {} turns of at least {:.0f} deg between held "
+                                         "positions, need {}",
+                                         r.turns, p.minTurnDeg, p.minTurns)};
+    }
+    const double dt = 1.0 / rateHz;
+    Eigen::Matrix<double, 9, 1> x;
+    x << 1, 0, 0, 0, 1, 0, 0, 0, 1;
+    Eigen::VectorXd res = misses(turns, fromParams(x), dt);
+    r.uncalibratedDeg = rmsMissDeg(res);
+    // Gauss-Newton on the nine entries, the Jacobian by central differences.
+    constexpr double kStep = 1e-6;
+    for (int it = 0; it < p.maxIterations; ++it) {
+        Eigen::MatrixXd jac(res.size(), 9);
+        for (int j = 0; j < 9; ++j) {
+            Eigen::Matrix<double, 9, 1> hi = x;
+            Eigen::Matrix<double, 9, 1> lo = x;
+            hi[j] += kStep;
+            lo[j] -= kStep;
+            jac.col(j) = (misses(turns, fromParams(hi), dt) - misses(turns, fromParams(lo), dt)) /
+                         (2.0 * kStep);
+        }
+        const Eigen::Matrix<double, 9, 1> delta = jac.colPivHouseholderQr().solve(-res);
+        if (!delta.allFinite()) {
+            return Error{EINVAL,
+                         "gyro axes: the turns do not determine the axes (turn the "
+                         "sensor about each of its axes)"};
+        }
+        x += delta;
+        res = misses(turns, fromParams(x), dt);
+        if (delta.norm() < 1e-10) {
+            break;
+        }
+    }
+    r.matrix = fromParams(x);
+    r.residualDeg = rmsMissDeg(res);
+    if (axisError(r.matrix) > p.maxAxisError) {
+        return Error{EINVAL, fmt::format("gyro axes: the fitted matrix is {:.3f} off the identity "
+                                         "(at most {:.3f}): the turns do not determine the axes",
+                                         axisError(r.matrix), p.maxAxisError)};
+    }
+    if (r.residualDeg > p.maxResidualDeg) {
+        return Error{EINVAL, fmt::format("gyro axes: the turns still miss by {:.2f} deg RMS after "
+                                         "the fit (at most {:.2f}): was a held position not still?",
+                                         r.residualDeg, p.maxResidualDeg)};
+    }
+    return r;
+}
+
+}  // namespace caphub::fusion
