@@ -47,13 +47,17 @@ struct CalibrateOptions {
 struct Streams {
     std::vector<std::vector<Vec3d>> gyr;
     std::vector<std::vector<Vec3d>> acc;
-    std::vector<std::vector<Vec3d>> mag;  // fresh magnetometer readings only
+    std::vector<std::vector<Vec3d>> mag;     // fresh magnetometer readings only
+    std::vector<std::vector<Vec3d>> magAcc;  // the accelerometer reading beside each of them
     std::vector<double> rateHz;
     bool virtualSuit = false;
     std::vector<bs::ImuConstants> truth;  // virtual suit: each simulated part's true errors
 
     explicit Streams(const board::Board& b)
-        : gyr(b.sensors.size()), acc(b.sensors.size()), mag(b.sensors.size()) {
+        : gyr(b.sensors.size()),
+          acc(b.sensors.size()),
+          mag(b.sensors.size()),
+          magAcc(b.sensors.size()) {
         for (const auto& s : b.sensors) {
             rateHz.push_back(s.achievedOdrHz);
         }
@@ -66,6 +70,7 @@ struct Streams {
         if ((s.sample.flags & hal::ImuSample::kMagFresh) != 0 &&
             (s.sample.flags & hal::ImuSample::kMagOverflow) == 0) {
             mag[i].push_back(s.sample.magUt.cast<double>());
+            magAcc[i].push_back(s.sample.accMps2.cast<double>());
         }
     }
 };
@@ -161,6 +166,12 @@ std::string vec(const Vec3d& v, double scale, int decimals) {
                        decimals, v.z() * scale, decimals);
 }
 
+// The rotation nearest a matrix (the orthogonal factor of its polar decomposition).
+Eigen::Matrix3d rotationOf(const Eigen::Matrix3d& m) {
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    return svd.matrixU() * svd.matrixV().transpose();
+}
+
 double departure(const Eigen::Matrix3d& m) {
     return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
 }
@@ -221,13 +232,61 @@ std::string calibrateAxes(const std::string& name, const Streams& st, std::size_
         // accelerometer now defines); the gyroscope's G Mg must be that same rotation.
         const bs::ImuConstants& t = st.truth[i];
         const Eigen::Matrix3d p = acc.matrix * t.accelMatrix;
-        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(p, Eigen::ComputeFullU | Eigen::ComputeFullV);
-        const Eigen::Matrix3d frame = svd.matrixU() * svd.matrixV().transpose();
+        const Eigen::Matrix3d frame = rotationOf(p);
         const double accAxes =
             (frame.transpose() * p - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
         const double gyroAxes = (cal.gyroMatrix * t.gyroMatrix - frame).cwiseAbs().maxCoeff();
         fmt::print(" {:>9.4f} {:>11.3f} {:>11.3f}", (acc.offsetMps2 - t.accelBiasMps2).norm(),
                    100.0 * accAxes, 100.0 * gyroAxes);
+    }
+    return {};
+}
+
+// The magnetometer's hard and soft iron and, when the accelerometer is calibrated already, its
+// alignment to the accelerometer's frame (folded into the soft-iron matrix). Prints the row.
+std::string calibrateMag(const std::string& name, const Streams& st, std::size_t i,
+                         fusion::SensorCalibration& cal) {
+    const auto r = fusion::fitEllipsoid(st.mag[i]);
+    if (!r) {
+        return r.error().message;
+    }
+    std::optional<fusion::MagAlignResult> align;
+    if (cal.hasAccel) {
+        std::vector<Vec3d> acc;
+        std::vector<Vec3d> mag;
+        for (std::size_t k = 0; k < st.mag[i].size(); ++k) {
+            acc.push_back(cal.accMatrix * (st.magAcc[i][k] - cal.accOffsetMps2));
+            mag.push_back(r->softIron * (st.mag[i][k] - r->hardIronUt));
+        }
+        auto a = fusion::alignMagToAccel(acc, mag);
+        if (!a) {
+            return a.error().message;
+        }
+        align = *a;
+    }
+    cal.hasMag = true;
+    cal.magHardIronUt = r->hardIronUt;
+    cal.magSoftIron = align ? Eigen::Matrix3d(align->rotation * r->softIron) : r->softIron;
+    cal.magQualityPct = r->qualityPct;
+    cal.magCoverage = r->coverage;
+    fmt::print(
+        "{:<11} {:>8} {:>26} {:>9.2f} {:>8.2f} {:>9.2f} {:>9} {:>14}", name, st.mag[i].size(),
+        vec(r->hardIronUt, 1.0, 2), r->fieldNormUt, r->qualityPct, r->coverage,
+        align ? fmt::format("{:.2f}", align->angleDeg) : "-",
+        align ? fmt::format("{:.2f} -> {:.2f}", align->unalignedDeg, align->residualDeg) : "-");
+    if (st.virtualSuit) {
+        // The part reads raw = Mm B + h. Calibrated, softIron Mm must turn the field into the
+        // accelerometer's frame: the rotation of A Ma (the frame it defines).
+        const bs::ImuConstants& t = st.truth[i];
+        const Eigen::Matrix3d frame = rotationOf(cal.accMatrix * t.accelMatrix);
+        const Eigen::Matrix3d m = cal.magSoftIron * t.magMatrix;
+        const double err =
+            align ? Eigen::AngleAxisd(Eigen::Matrix3d(rotationOf(m) * frame.transpose())).angle() *
+                        kRadToDeg
+                  : 0.0;
+        fmt::print(" {:>26} {:>9.3f} {:>9}", vec(t.magOffsetUt, 1.0, 2),
+                   (r->hardIronUt - t.magOffsetUt).norm(),
+                   align ? fmt::format("{:.3f}", err) : "-");
     }
     return {};
 }
@@ -251,9 +310,11 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
                       : "");
             break;
         case Kind::Mag:
-            fmt::print("{:<11} {:>8} {:>26} {:>9} {:>8} {:>9}{}\n", "sensor", "readings",
-                       "hard iron uT", "norm uT", "quality%", "coverage",
-                       truth ? fmt::format(" {:>26} {:>9}", "true hard iron", "error") : "");
+            fmt::print(
+                "{:<11} {:>8} {:>26} {:>9} {:>8} {:>9} {:>9} {:>14}{}\n", "sensor", "readings",
+                "hard iron uT", "norm uT", "quality%", "coverage", "align deg", "dip spread deg",
+                truth ? fmt::format(" {:>26} {:>9} {:>9}", "true hard iron", "error", "align err")
+                      : "");
             break;
     }
     for (std::size_t i = 0; i < b.sensors.size(); ++i) {
@@ -281,25 +342,9 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
             case Kind::Accel:
                 failure = calibrateAxes(name, st, i, cal);
                 break;
-            case Kind::Mag: {
-                const auto r = fusion::fitEllipsoid(st.mag[i]);
-                if (!r) {
-                    failure = r.error().message;
-                    break;
-                }
-                cal.hasMag = true;
-                cal.magHardIronUt = r->hardIronUt;
-                cal.magSoftIron = r->softIron;
-                cal.magQualityPct = r->qualityPct;
-                cal.magCoverage = r->coverage;
-                fmt::print("{:<11} {:>8} {:>26} {:>9.2f} {:>8.2f} {:>9.2f}", name, st.mag[i].size(),
-                           vec(r->hardIronUt, 1.0, 2), r->fieldNormUt, r->qualityPct, r->coverage);
-                if (truth) {
-                    const Vec3d& t = st.truth[i].magOffsetUt;
-                    fmt::print(" {:>26} {:>9.3f}", vec(t, 1.0, 2), (r->hardIronUt - t).norm());
-                }
+            case Kind::Mag:
+                failure = calibrateMag(name, st, i, cal);
                 break;
-            }
         }
         if (!failure.empty()) {
             fmt::print("{:<11} not calibrated: {}", name, failure);
@@ -337,9 +382,9 @@ int calibrate(Kind kind, const CalibrateOptions& o) {
 
     const double durationS = o.durationS > 0 ? o.durationS : defaultDurationS(kind, {});
     const bool sim = board::allBusesSimulated(b);
-    static constexpr const char* kWhat[] = {"gyroscope bias",
-                                            "accelerometer offset and axes, gyroscope axes",
-                                            "magnetometer hard and soft iron"};
+    static constexpr const char* kWhat[] = {
+        "gyroscope bias", "accelerometer offset and axes, gyroscope axes",
+        "magnetometer hard and soft iron (and its alignment to a calibrated accelerometer)"};
     static constexpr const char* kTodo[] = {
         "lay every sensor still (on a table, off the body)",
         "turn each sensor so that each of its six faces and eight corners points up in turn "

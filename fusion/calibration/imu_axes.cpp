@@ -196,4 +196,96 @@ Result<GyroAxesResult> calibrateGyroAxes(std::span<const Vec3d> gyr, double rate
     return r;
 }
 
+Result<MagAlignResult> alignMagToAccel(std::span<const Vec3d> acc, std::span<const Vec3d> mag,
+                                       const MagAlignParams& p) {
+    if (acc.size() != mag.size()) {
+        return Error{EINVAL, "mag alignment: the accelerometer and magnetometer readings differ"};
+    }
+    std::vector<Vec3d> up;
+    std::vector<Vec3d> field;
+    for (std::size_t k = 0; k < acc.size(); ++k) {
+        const double a = acc[k].norm();
+        const double m = mag[k].norm();
+        if (std::abs(a - p.gravityMps2) > p.maxAccDeviationMps2 || !(m > 0.0) ||
+            !acc[k].allFinite() || !mag[k].allFinite()) {
+            continue;
+        }
+        up.push_back(acc[k] / a);
+        field.push_back(mag[k] / m);
+    }
+    MagAlignResult r;
+    r.samples = static_cast<int>(up.size());
+    if (r.samples < p.minSamples) {
+        return Error{EINVAL, fmt::format("mag alignment: {} readings with the sensor near still, "
+                                         "need {}",
+                                         r.samples, p.minSamples)};
+    }
+    // Residual k: up . (R field) - sin(elevation); R = exp(x.head(3)), x[3] the sine.
+    auto residuals = [&](const Eigen::Vector4d& x) {
+        const Vec3d v = x.head<3>();
+        const double angle = v.norm();
+        const Eigen::Matrix3d rot = angle > 0.0
+                                        ? Eigen::AngleAxisd(angle, v / angle).toRotationMatrix()
+                                        : Eigen::Matrix3d::Identity();
+        Eigen::VectorXd res(static_cast<Eigen::Index>(up.size()));
+        for (std::size_t k = 0; k < up.size(); ++k) {
+            res[static_cast<Eigen::Index>(k)] = up[k].dot(rot * field[k]) - x[3];
+        }
+        return res;
+    };
+    auto spreadDeg = [&](const Eigen::VectorXd& res, double sine) {
+        double sum = 0.0;
+        const double base = std::asin(std::clamp(sine, -1.0, 1.0));
+        for (Eigen::Index k = 0; k < res.size(); ++k) {
+            const double d = std::asin(std::clamp(res[k] + sine, -1.0, 1.0)) - base;
+            sum += d * d;
+        }
+        return std::sqrt(sum / static_cast<double>(res.size())) * kRadToDeg;
+    };
+    Eigen::Vector4d x = Eigen::Vector4d::Zero();
+    double meanDot = 0.0;
+    for (std::size_t k = 0; k < up.size(); ++k) {
+        meanDot += up[k].dot(field[k]);
+    }
+    x[3] = meanDot / static_cast<double>(up.size());
+    Eigen::VectorXd res = residuals(x);
+    r.unalignedDeg = spreadDeg(res, x[3]);
+    constexpr double kStep = 1e-7;
+    for (int it = 0; it < p.maxIterations; ++it) {
+        Eigen::MatrixXd jac(res.size(), 4);
+        for (int j = 0; j < 4; ++j) {
+            Eigen::Vector4d hi = x;
+            Eigen::Vector4d lo = x;
+            hi[j] += kStep;
+            lo[j] -= kStep;
+            jac.col(j) = (residuals(hi) - residuals(lo)) / (2.0 * kStep);
+        }
+        const Eigen::Vector4d delta = jac.colPivHouseholderQr().solve(-res);
+        if (!delta.allFinite()) {
+            return Error{EINVAL,
+                         "mag alignment: the readings do not determine the rotation (turn "
+                         "the sensor through every direction)"};
+        }
+        x += delta;
+        res = residuals(x);
+        if (delta.norm() < 1e-12) {
+            break;
+        }
+    }
+    const Vec3d v = x.head<3>();
+    r.angleDeg = v.norm() * kRadToDeg;
+    r.rotation = v.norm() > 0.0 ? Eigen::AngleAxisd(v.norm(), v / v.norm()).toRotationMatrix()
+                                : Eigen::Matrix3d::Identity();
+    // Up and the field (pointing down, north) make an angle of 90 deg + dip.
+    r.dipDeg = -std::asin(std::clamp(x[3], -1.0, 1.0)) * kRadToDeg;
+    r.residualDeg = spreadDeg(res, x[3]);
+    if (r.angleDeg > p.maxAngleDeg) {
+        return Error{EINVAL,
+                     fmt::format("mag alignment: the fitted rotation is {:.1f} deg (at most "
+                                 "{:.1f}): a disturbance during the turning?",
+                                 r.angleDeg, p.maxAngleDeg)};
+    }
+    return r;
+}
+
 }  // namespace caphub::fusion

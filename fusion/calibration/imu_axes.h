@@ -6,7 +6,10 @@
 //  - the gyroscope: a full 3x3 matrix (scale, cross-axis and its misalignment to the
 //    accelerometer) such that the integrated turn between two held positions carries the
 //    gravity direction of the first onto that of the second, by Gauss-Newton.
-// The accelerometer then defines the sensor frame and the gyroscope reads rates in it.
+//  - the magnetometer's alignment to the accelerometer: the rotation under which the angle
+//    between gravity and the field stays the same in every orientation (the field's dip), from
+//    a session turning through every direction.
+// The accelerometer then defines the sensor frame and the gyroscope and magnetometer read in it.
 #pragma once
 
 #include <span>
@@ -59,5 +62,28 @@ Result<GyroAxesResult> calibrateGyroAxes(std::span<const Vec3d> gyrRadS, double 
                                          std::span<const StillInterval> positions,
                                          const AccelAxesResult& accel,
                                          const GyroAxesParams& params = {});
+
+struct MagAlignParams {
+    double maxAccDeviationMps2 = 0.3;  // samples whose |acc| is further from g are left out
+    double gravityMps2 = 9.81;
+    int minSamples = 100;
+    double maxAngleDeg = 10.0;  // a larger fitted rotation is refused
+    int maxIterations = 20;
+};
+
+struct MagAlignResult {
+    Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // mag_accel = rotation * mag
+    double angleDeg = 0.0;                                   // the rotation's angle
+    double dipDeg = 0.0;        // the field's dip below the horizontal, fitted
+    double residualDeg = 0.0;   // RMS spread of the gravity-field angle, aligned
+    double unalignedDeg = 0.0;  // the same before
+    int samples = 0;
+};
+
+// accMps2[k] and magUt[k]: calibrated readings of the same instant (the accelerometer's offset
+// and axes, the magnetometer's hard and soft iron applied), while the sensor turns slowly.
+// Gauss-Newton on the rotation (a rotation vector) and the dip.
+Result<MagAlignResult> alignMagToAccel(std::span<const Vec3d> accMps2, std::span<const Vec3d> magUt,
+                                       const MagAlignParams& params = {});
 
 }  // namespace caphub::fusion
