@@ -172,10 +172,6 @@ Eigen::Matrix3d rotationOf(const Eigen::Matrix3d& m) {
     return svd.matrixU() * svd.matrixV().transpose();
 }
 
-double departure(const Eigen::Matrix3d& m) {
-    return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-}
-
 // The accelerometer and gyroscope axes of one sensor from its held positions and the turns
 // between them; with too few positions for the axes, the six-position per-axis calibration.
 // Prints the sensor's row; returns why it failed, or nothing.
@@ -224,8 +220,8 @@ std::string calibrateAxes(const std::string& name, const Streams& st, std::size_
     cal.gyroMatrix = gyro ? gyro->matrix : Eigen::Matrix3d::Identity();
     fmt::print(
         "{:<11} {:>4} {:>29} {:>7.3f} {:>9.4f} {:>7} {:>13}", name, means.size(),
-        vec(acc.offsetMps2, 1.0, 4), 100.0 * departure(acc.matrix), acc.residualMps2,
-        gyro ? fmt::format("{:.3f}", 100.0 * departure(gyro->matrix)) : "-",
+        vec(acc.offsetMps2, 1.0, 4), 100.0 * fusion::axisDeparture(acc.matrix), acc.residualMps2,
+        gyro ? fmt::format("{:.3f}", 100.0 * fusion::axisDeparture(gyro->matrix)) : "-",
         gyro ? fmt::format("{:.2f} -> {:.2f}", gyro->uncalibratedDeg, gyro->residualDeg) : "-");
     if (st.virtualSuit) {
         // The part reads raw = M f + b. Calibrated, P = A M must be a rotation (the frame the

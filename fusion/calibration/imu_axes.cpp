@@ -15,9 +15,52 @@ namespace {
 
 constexpr double kRadToDeg = 57.29577951308232;
 
-// The largest deviation of a calibration matrix from the identity.
-double axisError(const Eigen::Matrix3d& m) {
-    return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+// Gauss-Newton on x, the Jacobian of residuals(x) by central differences of the given step;
+// stops when a step is shorter than tolerance. False when the normal equations are singular
+// (a step that is not finite).
+template <int N, typename Residuals>
+bool gaussNewton(Eigen::Matrix<double, N, 1>& x, const Residuals& residuals, double step,
+                 double tolerance, int maxIterations) {
+    Eigen::VectorXd res = residuals(x);
+    for (int it = 0; it < maxIterations; ++it) {
+        Eigen::MatrixXd jac(res.size(), N);
+        for (int j = 0; j < N; ++j) {
+            Eigen::Matrix<double, N, 1> hi = x;
+            Eigen::Matrix<double, N, 1> lo = x;
+            hi[j] += step;
+            lo[j] -= step;
+            jac.col(j) = (residuals(hi) - residuals(lo)) / (2.0 * step);
+        }
+        const Eigen::Matrix<double, N, 1> delta = jac.colPivHouseholderQr().solve(-res);
+        if (!delta.allFinite()) {
+            return false;
+        }
+        x += delta;
+        res = residuals(x);
+        if (delta.norm() < tolerance) {
+            break;
+        }
+    }
+    return true;
+}
+
+// The rotation of a rotation vector (axis times angle, rad).
+Eigen::Matrix3d rotationFromVector(const Vec3d& v) {
+    const double angle = v.norm();
+    return angle > 0.0 ? Eigen::AngleAxisd(angle, v / angle).toRotationMatrix()
+                       : Eigen::Matrix3d::Identity();
+}
+
+// A fitted calibration matrix further from the identity than allowed: refused, with the hint.
+Result<void> checkAxes(const char* what, const Eigen::Matrix3d& m, double maxDeparture,
+                       const char* hint) {
+    const double d = axisDeparture(m);
+    if (d > maxDeparture) {
+        return Error{EINVAL, fmt::format("{}: the fitted matrix is {:.3f} off the identity (at "
+                                         "most {:.3f}): {}",
+                                         what, d, maxDeparture, hint)};
+    }
+    return {};
 }
 
 // One turn between two held positions: the bias-corrected raw rates, the gravity direction
@@ -71,6 +114,10 @@ Eigen::Matrix3d fromParams(const Eigen::Matrix<double, 9, 1>& x) {
 
 }  // namespace
 
+double axisDeparture(const Eigen::Matrix3d& m) {
+    return (m - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
 Result<AccelAxesResult> calibrateAccelAxes(std::span<const Vec3d> pos, const AccelAxesParams& p) {
     if (static_cast<int>(pos.size()) < p.minPositions) {
         return Error{EINVAL, fmt::format("accel axes: {} held positions, need at least {} (hold "
@@ -96,10 +143,10 @@ Result<AccelAxesResult> calibrateAccelAxes(std::span<const Vec3d> pos, const Acc
         sum += d * d;
     }
     r.residualMps2 = std::sqrt(sum / static_cast<double>(pos.size()));
-    if (axisError(r.matrix) > p.maxAxisError) {
-        return Error{EINVAL, fmt::format("accel axes: the fitted matrix is {:.3f} off the identity "
-                                         "(at most {:.3f}): the positions are too few or too alike",
-                                         axisError(r.matrix), p.maxAxisError)};
+    if (auto c = checkAxes("accel axes", r.matrix, p.maxAxisError,
+                           "the positions are too few or too alike");
+        !c) {
+        return c.error();
     }
     if (r.residualMps2 > p.maxResidualMps2) {
         return Error{EINVAL, fmt::format("accel axes: the positions miss gravity by {:.3f} m/s^2 "
@@ -155,38 +202,22 @@ Result<GyroAxesResult> calibrateGyroAxes(std::span<const Vec3d> gyr, double rate
     const double dt = 1.0 / rateHz;
     Eigen::Matrix<double, 9, 1> x;
     x << 1, 0, 0, 0, 1, 0, 0, 0, 1;
-    Eigen::VectorXd res = misses(turns, fromParams(x), dt);
-    r.uncalibratedDeg = rmsMissDeg(res);
-    // Gauss-Newton on the nine entries, the Jacobian by central differences.
-    constexpr double kStep = 1e-6;
-    for (int it = 0; it < p.maxIterations; ++it) {
-        Eigen::MatrixXd jac(res.size(), 9);
-        for (int j = 0; j < 9; ++j) {
-            Eigen::Matrix<double, 9, 1> hi = x;
-            Eigen::Matrix<double, 9, 1> lo = x;
-            hi[j] += kStep;
-            lo[j] -= kStep;
-            jac.col(j) = (misses(turns, fromParams(hi), dt) - misses(turns, fromParams(lo), dt)) /
-                         (2.0 * kStep);
-        }
-        const Eigen::Matrix<double, 9, 1> delta = jac.colPivHouseholderQr().solve(-res);
-        if (!delta.allFinite()) {
-            return Error{EINVAL,
-                         "gyro axes: the turns do not determine the axes (turn the "
-                         "sensor about each of its axes)"};
-        }
-        x += delta;
-        res = misses(turns, fromParams(x), dt);
-        if (delta.norm() < 1e-10) {
-            break;
-        }
+    const auto residuals = [&turns, dt](const Eigen::Matrix<double, 9, 1>& m) {
+        return misses(turns, fromParams(m), dt);
+    };
+    r.uncalibratedDeg = rmsMissDeg(residuals(x));
+    // Gauss-Newton on the nine entries.
+    if (!gaussNewton(x, residuals, 1e-6, 1e-10, p.maxIterations)) {
+        return Error{EINVAL,
+                     "gyro axes: the turns do not determine the axes (turn the "
+                     "sensor about each of its axes)"};
     }
     r.matrix = fromParams(x);
-    r.residualDeg = rmsMissDeg(res);
-    if (axisError(r.matrix) > p.maxAxisError) {
-        return Error{EINVAL, fmt::format("gyro axes: the fitted matrix is {:.3f} off the identity "
-                                         "(at most {:.3f}): the turns do not determine the axes",
-                                         axisError(r.matrix), p.maxAxisError)};
+    r.residualDeg = rmsMissDeg(residuals(x));
+    if (auto c =
+            checkAxes("gyro axes", r.matrix, p.maxAxisError, "the turns do not determine the axes");
+        !c) {
+        return c.error();
     }
     if (r.residualDeg > p.maxResidualDeg) {
         return Error{EINVAL, fmt::format("gyro axes: the turns still miss by {:.2f} deg RMS after "
@@ -222,11 +253,7 @@ Result<MagAlignResult> alignMagToAccel(std::span<const Vec3d> acc, std::span<con
     }
     // Residual k: up . (R field) - sin(elevation); R = exp(x.head(3)), x[3] the sine.
     auto residuals = [&](const Eigen::Vector4d& x) {
-        const Vec3d v = x.head<3>();
-        const double angle = v.norm();
-        const Eigen::Matrix3d rot = angle > 0.0
-                                        ? Eigen::AngleAxisd(angle, v / angle).toRotationMatrix()
-                                        : Eigen::Matrix3d::Identity();
+        const Eigen::Matrix3d rot = rotationFromVector(x.head<3>());
         Eigen::VectorXd res(static_cast<Eigen::Index>(up.size()));
         for (std::size_t k = 0; k < up.size(); ++k) {
             res[static_cast<Eigen::Index>(k)] = up[k].dot(rot * field[k]) - x[3];
@@ -248,37 +275,18 @@ Result<MagAlignResult> alignMagToAccel(std::span<const Vec3d> acc, std::span<con
         meanDot += up[k].dot(field[k]);
     }
     x[3] = meanDot / static_cast<double>(up.size());
-    Eigen::VectorXd res = residuals(x);
-    r.unalignedDeg = spreadDeg(res, x[3]);
-    constexpr double kStep = 1e-7;
-    for (int it = 0; it < p.maxIterations; ++it) {
-        Eigen::MatrixXd jac(res.size(), 4);
-        for (int j = 0; j < 4; ++j) {
-            Eigen::Vector4d hi = x;
-            Eigen::Vector4d lo = x;
-            hi[j] += kStep;
-            lo[j] -= kStep;
-            jac.col(j) = (residuals(hi) - residuals(lo)) / (2.0 * kStep);
-        }
-        const Eigen::Vector4d delta = jac.colPivHouseholderQr().solve(-res);
-        if (!delta.allFinite()) {
-            return Error{EINVAL,
-                         "mag alignment: the readings do not determine the rotation (turn "
-                         "the sensor through every direction)"};
-        }
-        x += delta;
-        res = residuals(x);
-        if (delta.norm() < 1e-12) {
-            break;
-        }
+    r.unalignedDeg = spreadDeg(residuals(x), x[3]);
+    if (!gaussNewton(x, residuals, 1e-7, 1e-12, p.maxIterations)) {
+        return Error{EINVAL,
+                     "mag alignment: the readings do not determine the rotation (turn "
+                     "the sensor through every direction)"};
     }
     const Vec3d v = x.head<3>();
     r.angleDeg = v.norm() * kRadToDeg;
-    r.rotation = v.norm() > 0.0 ? Eigen::AngleAxisd(v.norm(), v / v.norm()).toRotationMatrix()
-                                : Eigen::Matrix3d::Identity();
+    r.rotation = rotationFromVector(v);
     // Up and the field (pointing down, north) make an angle of 90 deg + dip.
     r.dipDeg = -std::asin(std::clamp(x[3], -1.0, 1.0)) * kRadToDeg;
-    r.residualDeg = spreadDeg(res, x[3]);
+    r.residualDeg = spreadDeg(residuals(x), x[3]);
     if (r.angleDeg > p.maxAngleDeg) {
         return Error{EINVAL,
                      fmt::format("mag alignment: the fitted rotation is {:.1f} deg (at most "

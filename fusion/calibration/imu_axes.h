@@ -22,6 +22,9 @@
 
 namespace caphub::fusion {
 
+// The largest departure of a calibration matrix's entries from the identity's.
+double axisDeparture(const Eigen::Matrix3d& m);
+
 struct AccelAxesParams {
     double gravityMps2 = 9.81;
     int minPositions = 9;          // the fit has nine unknowns
