@@ -45,6 +45,8 @@ struct EvaluateOptions {
     // true: the body stage gets the clip subject's skeleton measured from the clip (as the
     // ideal-orientation evaluation does); false: the board's [subject] proportions.
     bool measuredSkeleton = true;
+    // BodyStage::Options::aidFilters: the filters told the body's acceleration.
+    bool aidFilters = true;
 };
 
 struct EvaluateResult {

@@ -131,7 +131,11 @@ public:
     // lower bound and the strapdown lost an unknown rotation; counted (clipEvents) so that the
     // error that follows can be told from the filter's own.
     void updateGyr(const Vec3<Gyr>& gyr, bool clipped = false);
-    void updateAcc(const Vec3<Acc>& acc);
+    // linAccEarth: the sensor's linear acceleration in the earth frame (ENU, m/s^2) when it is
+    // known from outside, such as the body's motion from its foot contacts; it is taken out of
+    // the specific force before the gravity low-pass, so that a sustained acceleration (starting
+    // to walk, braking) does not tilt the estimate. Zero: unknown.
+    void updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth = Vec3<Acc>{});
     void updateMag(const Vec3<Mag>& mag);
 
     // Orientation sensor -> earth (ENU).
@@ -215,7 +219,7 @@ void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
 }
 
 template <typename S>
-void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc) {
+void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth) {
     FilterState<S>& s = state_;
     restUpdateAcc(coeffs_.rest, s.rest, acc);
 
@@ -224,7 +228,8 @@ void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc) {
     const Coef n2 = scalarCast<Coef>(ag.x * ag.x + ag.y * ag.y + ag.z * ag.z);
     s.dynamic = n2 < coeffs_.dynLoSq || n2 > coeffs_.dynHiSq;
 
-    const Vec3<Acc> accI = rotate(s.qGyr, acc);
+    // Gravity in the quasi-inertial frame: the specific force less the known acceleration.
+    const Vec3<Acc> accI = rotate(s.qGyr, acc) - rotate(conjugate(s.qCorr), linAccEarth);
     if (!s.inclinationInit) {
         // Initial alignment: take the first sample as gravity, exactly.
         s.accLp = accI;

@@ -30,6 +30,7 @@ struct EvaluateCliOptions {
     double poseRateHz = 60;
     std::string skeleton = "clip";
     std::string json;
+    bool noBodyAiding = false;
 };
 
 int evaluate(const EvaluateCliOptions& c) {
@@ -43,6 +44,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.seed = c.suit.seed;
     o.strapDeg = c.suit.strapDeg;
     o.poseRateHz = c.poseRateHz;
+    o.aidFilters = !c.noBodyAiding;
     const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
         return kExitUsage;
@@ -130,6 +132,9 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                     "lengths would be) or board (the board's [subject] proportions)")
         ->capture_default_str();
     cmd->add_option("--json", o->json, "Also write the scores to this JSON file");
+    cmd->add_flag("--no-body-aiding", o->noBodyAiding,
+                  "Do not tell the filters the body's acceleration (from the foot contacts): "
+                  "to see what it does");
     cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });
 }
 

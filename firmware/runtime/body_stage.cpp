@@ -29,7 +29,7 @@ body::SegmentMask maskOf(const board::Board& board) {
 
 }  // namespace
 
-BodyStage::BodyStage(const board::Board& board, const FusionStage& fusion, RecordingWriter* writer,
+BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWriter* writer,
                      Clock& clock, const Options& options)
     : board_(board),
       fusion_(fusion),
@@ -122,6 +122,7 @@ void BodyStage::calibrate(Timestamp t) {
     calibration_ = *cal;
     solver_.setCalibration(calibration_);
     solver_.resetRoot();
+    rootVelocityValid_ = false;
     calibrated_ = true;
     nextFrame_ = t;
     if (writer_ != nullptr && writer_->error() == 0) {
@@ -148,6 +149,9 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     lastFrame_ = t;
     const body::Pose& pose = solver_.solve(frame, dtS);
     ++poses_;
+    if (options_.aidFilters) {
+        feedBackAcceleration(dtS);
+    }
     if (writer_ != nullptr && writer_->error() == 0) {
         for (std::size_t j = 0; j < joints_.size(); ++j) {
             joints_[j] = pose.qLocal[j].cast<float>();
@@ -155,6 +159,30 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
         (void)writer_->writePose(t, pose.positionM[0].cast<float>(), joints_);
     }
     latency_.add(clock_.now() - newestSample);
+}
+
+void BodyStage::feedBackAcceleration(double dtS) {
+    // The filters low-pass gravity over seconds, so a sustained horizontal acceleration (starting
+    // to walk, stopping) would tilt every one of them alike; the root's velocity from the foot
+    // contacts says what it is. Low-passed over 0.5 s (within each step the root's speed swings
+    // and the contact changes step it; only the slow part tilts the filters), then
+    // differentiated; vertical motion averages out over a gait cycle and is left to the filters.
+    constexpr double kTauS = 0.5;
+    constexpr double kMaxMps2 = 4.0;  // beyond what walking or running sustains: a tracking slip
+    const Vec3d& v = solver_.rootTracker().rootVelocityMps();
+    const Vec3d horizontal(v.x(), 0, v.z());
+    if (!rootVelocityValid_ || dtS <= 0) {
+        rootVelocityLp_ = horizontal;
+        rootVelocityValid_ = true;
+        return;
+    }
+    const Vec3d before = rootVelocityLp_;
+    rootVelocityLp_ += (horizontal - before) * (1.0 - std::exp(-dtS / kTauS));
+    Vec3d a = (rootVelocityLp_ - before) / dtS;
+    if (a.norm() > kMaxMps2) {
+        a *= kMaxMps2 / a.norm();
+    }
+    fusion_.setBodyAcceleration(calibration_.qEnuWorld() * a);
 }
 
 }  // namespace caphub::firmware

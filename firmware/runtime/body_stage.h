@@ -29,12 +29,16 @@ public:
         Duration average = std::chrono::milliseconds(1000);
         // The subject's skeleton; default: from the board's [subject].
         std::optional<body::Dimensions> dimensions;
+        // Hand the filters the body's horizontal acceleration from the root's tracked motion
+        // (FusionStage::setBodyAcceleration), so that starting and stopping do not tilt them.
+        bool aidFilters = true;
     };
 
-    // fusion must be added to the capture before this stage (it reads its latest orientations);
-    // writer may be null.
-    BodyStage(const board::Board& board, const FusionStage& fusion, RecordingWriter* writer,
-              Clock& clock, const Options& options);
+    // fusion must be added to the capture before this stage (it reads its latest orientations,
+    // and hands it back the body's acceleration: FusionStage::setBodyAcceleration); writer may
+    // be null.
+    BodyStage(const board::Board& board, FusionStage& fusion, RecordingWriter* writer, Clock& clock,
+              const Options& options);
 
     void onSample(const SensorSample& s) override;
     void onEvent(const RuntimeEvent& e) override;
@@ -56,9 +60,11 @@ public:
 private:
     void calibrate(Timestamp t);
     void solveFrame(Timestamp t, Timestamp newestSample);
+    // The body's horizontal acceleration from the root's tracked velocity, to the filters.
+    void feedBackAcceleration(double dtS);
 
     const board::Board& board_;
-    const FusionStage& fusion_;
+    FusionStage& fusion_;
     RecordingWriter* writer_;
     Clock& clock_;
     Options options_;
@@ -77,6 +83,8 @@ private:
     std::vector<Eigen::Vector4d> sum_;
     std::vector<int> count_;
     std::uint64_t poses_ = 0;
+    Vec3d rootVelocityLp_ = Vec3d::Zero();  // m/s, skeleton world, horizontal
+    bool rootVelocityValid_ = false;
     LatencyWindow latency_{1 << 16};
     std::array<Eigen::Quaternionf, body::kSegmentCount> joints_{};
 };

@@ -35,7 +35,8 @@ void FusionStage::onSample(const SensorSample& s) {
                  static_cast<float>(c.gyrRadS.z())},
                 clipped);
     f.updateAcc({static_cast<float>(c.accMps2.x()), static_cast<float>(c.accMps2.y()),
-                 static_cast<float>(c.accMps2.z())});
+                 static_cast<float>(c.accMps2.z())},
+                bodyAccEnu_);
     if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
         (in.flags & hal::ImuSample::kMagOverflow) == 0) {
         f.updateMag({static_cast<float>(c.magUt.x()), static_cast<float>(c.magUt.y()),
@@ -58,6 +59,11 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
         static_cast<std::size_t>(e.sensor) < filters_.size()) {
         valid_[static_cast<std::size_t>(e.sensor)] = false;
     }
+}
+
+void FusionStage::setBodyAcceleration(const Eigen::Vector3d& enuMps2) {
+    bodyAccEnu_ = {static_cast<float>(enuMps2.x()), static_cast<float>(enuMps2.y()),
+                   static_cast<float>(enuMps2.z())};
 }
 
 std::uint32_t FusionStage::clipEvents(int sensor) const {

@@ -33,12 +33,17 @@ public:
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
+    // The body's acceleration (ENU, m/s^2) as the body solver tracks it, handed to every filter
+    // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
+    // next call. Zero (the default): unknown.
+    void setBodyAcceleration(const Eigen::Vector3d& enuMps2);
 
 private:
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Eigen::Quaternionf> latest_;
     std::vector<bool> valid_;
     Calibrations calibrations_;
+    fusion::Vec3<float> bodyAccEnu_{};
     RecordingWriter* writer_;
     std::uint64_t updates_ = 0;
 };

@@ -22,6 +22,8 @@ struct SynthConfig {
     unsigned seed = 1;
     // Extra field in the earth frame at time t (a magnet near the sensor), uT.
     std::function<Vec3d(double)> magDisturbanceEarthUt;
+    // Linear acceleration of the sensor in the earth frame at time t, m/s^2.
+    std::function<Vec3d(double)> linearAccEarth;
 };
 
 struct SynthRun {
@@ -48,7 +50,11 @@ inline SynthRun synthesize(const SynthConfig& c, const Quatd& q0, double duratio
         s.tS = t;
         s.gyrRadS = w + c.gyrBiasRadS + noise(c.gyrNoiseRadS);
         const Eigen::Matrix3d rT = q.toRotationMatrix().transpose();
-        s.accMps2 = rT * Vec3d(0.0, 0.0, c.gravityMps2) + noise(c.accNoiseMps2);
+        Vec3d specificForce(0.0, 0.0, c.gravityMps2);
+        if (c.linearAccEarth) {
+            specificForce += c.linearAccEarth(t);
+        }
+        s.accMps2 = rT * specificForce + noise(c.accNoiseMps2);
         Vec3d mE = c.magEarthUt;
         if (c.magDisturbanceEarthUt) {
             mE += c.magDisturbanceEarthUt(t);
