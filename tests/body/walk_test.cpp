@@ -19,7 +19,8 @@ const std::filesystem::path kSuit =
 // distance walked on cmu_12_01_walk; see docs/skeleton.md for why, including the 3.7 % drift
 // floor that the clip's sliding feet set for any rule that holds a foot point still). They stay
 // here, unloosened, to be enabled when the targets are met; caphub_body_evaluate prints the same
-// figures.
+// figures. The paper's 17 joints meet the angle and position targets through the whole path
+// (typical chips, calibrated): EvaluateThroughTheFilter in tests/firmware/evaluate_test.cpp.
 TEST(VirtualSuitWalk, DISABLED_RootMovesForwardByTheTrueDistanceWithinThreePercent) {
     auto s = evaluation::scoreClip(
         std::filesystem::path(CAPHUB_TEST_DATA_DIR) / "bvh" / "cmu_12_01_walk.bvh", kSuit, 100);

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "board/loader.h"
+#include "firmware/calibration_file.h"
 #include "firmware/evaluation.h"
 #include "tests/body/body_evaluation.h"
 #include "tests/firmware/cli_run.h"
@@ -100,6 +101,37 @@ TEST(EvaluateThroughTheFilter, TheBodysAccelerationKeepsTheFiltersLevelAsTheWalk
     EXPECT_LT(aided->score.independentMeanPositionM,
               unaided->score.independentMeanPositionM - 0.002)
         << tables;
+}
+
+TEST(EvaluateThroughTheFilter, ThePapersSeventeenJointsMeetTheTargetsOnBothClipsAfterCalibration) {
+    // The command on the `typical` profile: the sensors calibrated on the virtual suit
+    // (`caphub calibrate gyro|accel|mag` into one file, in that order), then both shared clips
+    // through fusion and body after the T-pose calibration. Targets: mean joint angle error
+    // <= 3 deg and mean joint position error <= 2 cm from the root, on the paper's 17 joints
+    // (measured with seed 1: 1.108 deg / 1.760 cm and 2.611 deg / 1.543 cm). The drift target
+    // is not met on cmu_12_01 (docs/skeleton.md) and is not asserted here.
+    const fs::path cal = fs::temp_directory_path() / "caphub_evaluate_targets_cal.toml";
+    fs::remove(cal);
+    for (const char* what : {"gyro", "accel", "mag"}) {
+        const auto r =
+            caphub::testing::caphub(std::string("calibrate ") + what + " --file " + cal.string());
+        ASSERT_EQ(r.exitCode, 0) << r.output;
+    }
+    const board::Board b = simSuit();
+    auto set = firmware::readCalibrationFile(cal);
+    fs::remove(cal);
+    ASSERT_TRUE(set) << set.error().message;
+    for (const char* clip : {"cmu_12_01_walk.bvh", "cmu_131_01_start_walk_stop.bvh"}) {
+        firmware::EvaluateOptions o;
+        o.bvh = kSource / "tests" / "data" / "bvh" / clip;
+        o.sensorCalibrations = firmware::calibrationsFor(b, *set, nullptr);
+        auto r = firmware::evaluateClip(b, o);
+        ASSERT_TRUE(r) << r.error().message;
+        const std::string table = body::formatScoreTable(r->score);
+        EXPECT_GT(r->score.frames, 200) << clip;
+        EXPECT_LE(r->score.independentMeanAngleDeg, 3.0) << clip << "\n" << table;
+        EXPECT_LE(r->score.independentMeanPositionM, 0.02) << clip << "\n" << table;
+    }
 }
 
 TEST(EvaluateThroughTheFilter, RejectsABoardWithRealBuses) {
