@@ -79,10 +79,10 @@ double defaultDurationS(Kind k, const bs::ScriptTiming& timing) {
     switch (k) {
         case Kind::Gyro:
             return 5.0;
-        case Kind::Accel: {
-            const int n = bs::ScriptedMotion::positionCount(bs::Script::FourteenPositions);
-            return n * timing.holdS + (n - 1) * timing.moveS;
-        }
+        case Kind::Accel:  // the script's own length
+            return static_cast<double>(
+                       bs::ScriptedMotion(bs::Script::FourteenPositions, timing).durationNs()) *
+                   1e-9;
         case Kind::Mag:
             return timing.tumbleS;
     }

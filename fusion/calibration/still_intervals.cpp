@@ -26,6 +26,11 @@ double maxStd(std::span<const Vec3d> v, const Vec3d& mean) {
     return std::sqrt(var.maxCoeff() / static_cast<double>(v.size()));
 }
 
+// The samples in one window.
+std::size_t windowSamples(const StillPositionParams& p, double rateHz) {
+    return static_cast<std::size_t>(std::max(2.0, std::round(p.windowS * rateHz)));
+}
+
 StillInterval interval(std::span<const Vec3d> acc, std::span<const Vec3d> gyr, std::size_t begin,
                        std::size_t end) {
     StillInterval s;
@@ -44,7 +49,7 @@ Result<std::vector<StillInterval>> findStillIntervals(std::span<const Vec3d> acc
     if (acc.size() != gyr.size() || !(rateHz > 0)) {
         return Error{EINVAL, "still positions: the accelerometer and gyroscope streams differ"};
     }
-    const auto n = static_cast<std::size_t>(std::max(2.0, std::round(p.windowS * rateHz)));
+    const std::size_t n = windowSamples(p, rateHz);
     std::vector<StillInterval> out;
     bool open = false;
     for (std::size_t start = 0; start + n <= acc.size(); start += n) {
@@ -76,7 +81,7 @@ Result<std::vector<StillInterval>> findHeldPositions(std::span<const Vec3d> acc,
     if (!runs) {
         return runs.error();
     }
-    const auto n = static_cast<std::size_t>(std::max(2.0, std::round(p.windowS * rateHz)));
+    const std::size_t n = windowSamples(p, rateHz);
     const auto needed = static_cast<std::size_t>(std::ceil(p.minStillS * rateHz));
     std::vector<StillInterval> out;
     for (const auto& r : *runs) {
