@@ -237,13 +237,14 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"mean_angle_deg\": {:.6f},\n      \"mean_position_m\": {:.6f},\n"
             "      \"walked_m\": {:.6f},\n      \"final_drift_m\": {:.6f},\n"
             "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n"
+            "      \"mean_height_error_m\": {:.6f},\n      \"max_height_error_m\": {:.6f},\n"
             "      \"independent_mean_angle_deg\": {:.6f},\n"
             "      \"independent_mean_position_m\": {:.6f},\n      \"joints\": [",
             c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
             r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
             r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
-            s.finalDriftM, s.maxDriftM, s.stanceChanges, s.independentMeanAngleDeg,
-            s.independentMeanPositionM);
+            s.finalDriftM, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM, s.maxHeightErrorM,
+            s.independentMeanAngleDeg, s.independentMeanPositionM);
         for (int i = 0; i < body::kSegmentCount; ++i) {
             const auto u = static_cast<std::size_t>(i);
             out += fmt::format(

@@ -49,6 +49,7 @@ BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWr
         sensorOfSegment_[seg] = static_cast<int>(i);
         nominal_[seg] = board.sensors[i].mounting;
     }
+    pelvisSensor_ = sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::Pelvis))];
     if (!options_.calibrate) {
         // No calibration pose: the nominal mountings, the subject facing north.
         calibration_.mask = mask_;
@@ -85,6 +86,14 @@ void BodyStage::onSample(const SensorSample& s) {
     }
     if (!calibrated_) {
         return;
+    }
+    Eigen::Vector3f f;
+    Eigen::Quaternionf q;
+    if (s.sensor == pelvisSensor_ && fusion_.specificForce(s.sensor, f) &&
+        fusion_.orientation(s.sensor, q)) {
+        pelvisForceSum_ +=
+            calibration_.qEnuWorld().conjugate() * (q.cast<double>() * f.cast<double>());
+        ++pelvisForceCount_;
     }
     // Poses on a fixed grid of the output rate: every grid point the newest sample has passed
     // gets its pose (samples of several buses arrive interleaved, so the newest time can jump by
@@ -147,7 +156,15 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     }
     const double dtS = poses_ == 0 ? toSeconds(period_) : toSeconds(t - lastFrame_);
     lastFrame_ = t;
-    const body::Pose& pose = solver_.solve(frame, dtS);
+    // The pelvis accelerometer over the frame, in the skeleton world frame: it tells a flight
+    // phase (a jump, a running stride) from stance, and the velocity at take-off.
+    std::optional<Vec3d> rootSpecificForce;
+    if (pelvisForceCount_ > 0) {
+        rootSpecificForce = pelvisForceSum_ / pelvisForceCount_;
+        pelvisForceSum_.setZero();
+        pelvisForceCount_ = 0;
+    }
+    const body::Pose& pose = solver_.solve(frame, dtS, rootSpecificForce);
     ++poses_;
     if (options_.aidFilters) {
         feedBackAcceleration(dtS);

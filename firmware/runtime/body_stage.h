@@ -73,6 +73,10 @@ private:
     body::SegmentMask mask_ = 0;
     std::array<Quatd, body::kSegmentCount> nominal_;
     std::vector<int> sensorOfSegment_;  // segment -> board sensor, -1 when none
+    int pelvisSensor_ = -1;
+    // The pelvis accelerometer's readings since the last pose, skeleton world frame (m/s^2).
+    Vec3d pelvisForceSum_ = Vec3d::Zero();
+    int pelvisForceCount_ = 0;
     body::BodyCalibration calibration_;
     bool calibrated_ = false;
     std::string calibrationError_;

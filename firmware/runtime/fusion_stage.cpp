@@ -5,6 +5,7 @@ namespace caphub::firmware {
 FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer,
                          Calibrations calibrations)
     : latest_(board.sensors.size(), Eigen::Quaternionf::Identity()),
+      latestAcc_(board.sensors.size(), Eigen::Vector3f::Zero()),
       valid_(board.sensors.size(), false),
       calibrations_(std::move(calibrations)),
       writer_(writer) {
@@ -46,6 +47,7 @@ void FusionStage::onSample(const SensorSample& s) {
     Eigen::Quaternionf out(q.w, q.x, q.y, q.z);
     out.normalize();
     latest_[static_cast<std::size_t>(s.sensor)] = out;
+    latestAcc_[static_cast<std::size_t>(s.sensor)] = c.accMps2.cast<float>();
     valid_[static_cast<std::size_t>(s.sensor)] = true;
     ++updates_;
     if (writer_ != nullptr && writer_->error() == 0) {
@@ -73,12 +75,24 @@ std::uint32_t FusionStage::clipEvents(int sensor) const {
     return filters_[static_cast<std::size_t>(sensor)]->clipEvents();
 }
 
+bool FusionStage::hasLatest(int sensor) const {
+    return sensor >= 0 && static_cast<std::size_t>(sensor) < filters_.size() &&
+           valid_[static_cast<std::size_t>(sensor)];
+}
+
 bool FusionStage::orientation(int sensor, Eigen::Quaternionf& q) const {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size() ||
-        !valid_[static_cast<std::size_t>(sensor)]) {
+    if (!hasLatest(sensor)) {
         return false;
     }
     q = latest_[static_cast<std::size_t>(sensor)];
+    return true;
+}
+
+bool FusionStage::specificForce(int sensor, Eigen::Vector3f& f) const {
+    if (!hasLatest(sensor)) {
+        return false;
+    }
+    f = latestAcc_[static_cast<std::size_t>(sensor)];
     return true;
 }
 

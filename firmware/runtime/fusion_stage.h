@@ -30,6 +30,9 @@ public:
 
     // The latest orientation of a sensor (sensor -> ENU), and whether it has one.
     bool orientation(int sensor, Eigen::Quaternionf& q) const;
+    // The latest calibrated accelerometer reading of a sensor (specific force, sensor frame,
+    // m/s^2), and whether it has one.
+    bool specificForce(int sensor, Eigen::Vector3f& f) const;
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
@@ -39,8 +42,12 @@ public:
     void setBodyAcceleration(const Eigen::Vector3d& enuMps2);
 
 private:
+    // Whether the sensor exists and has been fused since it was last lost.
+    bool hasLatest(int sensor) const;
+
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Eigen::Quaternionf> latest_;
+    std::vector<Eigen::Vector3f> latestAcc_;
     std::vector<bool> valid_;
     Calibrations calibrations_;
     fusion::Vec3<float> bodyAccEnu_{};

@@ -19,7 +19,7 @@ void BodySolver::resetRoot(double xM, double zM) {
 }
 
 const Pose& BodySolver::solve(const SensorFrame& frame, double dtS,
-                              std::optional<double> rootSpecificForceMps2) {
+                              const std::optional<Vec3d>& rootSpecificForceMps2) {
     const Dimensions& d = skeleton_.dimensions();
     poseSolver_.solve(frame, pose_, &limits_);
     forwardKinematics(d, Vec3d::Zero(), pose_);

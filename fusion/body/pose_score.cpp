@@ -10,6 +10,7 @@ namespace caphub::body {
 void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     const Vec3d& trueRoot = truth.positionM[0];
     if (!lastTrueRootM_) {
+        heightOffsetM_ = trueRoot.y() - solved.positionM[0].y();
         if (origin_ == RootOrigin::AtFirstFrame) {
             rootOffsetM_ = trueRoot - solved.positionM[0];
             rootOffsetM_.y() = 0;
@@ -45,6 +46,9 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     const double drift = std::hypot(root.x() - trueRoot.x(), root.z() - trueRoot.z());
     sum_.finalDriftM = drift;
     sum_.maxDriftM = std::max(sum_.maxDriftM, drift);
+    const double height = std::abs(solved.positionM[0].y() + heightOffsetM_ - trueRoot.y());
+    sum_.meanHeightErrorM += height;
+    sum_.maxHeightErrorM = std::max(sum_.maxHeightErrorM, height);
     ++sum_.frames;
 }
 
@@ -55,6 +59,7 @@ PoseScore PoseScorer::score() const {
     }
     s.meanAngleDeg = 0;
     s.meanPositionM = 0;
+    s.meanHeightErrorM /= s.frames;
     for (int i = 0; i < kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);
         s.angleDeg[u] /= s.frames;
@@ -130,11 +135,14 @@ std::string formatScoreTable(const PoseScore& s) {
     }
     out += fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.independentMeanAngleDeg,
                        s.independentMeanPositionM * 100);
+    // A path of a few millimetres (jumping on the spot) makes no meaningful percentage.
+    const std::string percent =
+        s.walkedM >= 0.05 ? fmt::format(" ({:.2f} %)", 100 * s.finalDriftM / s.walkedM) : "";
     out += fmt::format(
-        "root: true horizontal path {:.3f} m, final drift {:.3f} m ({:.2f} %), max drift {:.3f} m, "
-        "{} stance changes\n",
-        s.walkedM, s.finalDriftM, s.walkedM > 0 ? 100 * s.finalDriftM / s.walkedM : 0.0,
-        s.maxDriftM, s.stanceChanges);
+        "root: true horizontal path {:.3f} m, final drift {:.3f} m{}, max drift {:.3f} m, "
+        "{} stance changes; height error mean {:.3f} m, max {:.3f} m\n",
+        s.walkedM, s.finalDriftM, percent, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM,
+        s.maxHeightErrorM);
     return out;
 }
 

@@ -43,6 +43,11 @@ struct PoseScore {
     double walkedM = 0;                   // horizontal path length of the true root
     double finalDriftM = 0;  // horizontal distance between solved and true root at the end
     double maxDriftM = 0;
+    // The root's height against the truth's, the offset at the first frame removed (the floor
+    // the solver assumes and the clip's floor need not be at one height): mean and largest
+    // absolute error, m. Jumps and crouches show here.
+    double meanHeightErrorM = 0;
+    double maxHeightErrorM = 0;
     int stanceChanges = 0;  // filled in by the caller (the solver's root tracker)
 };
 
@@ -65,6 +70,7 @@ private:
     PoseScore sum_;
     std::optional<Vec3d> lastTrueRootM_;
     Vec3d rootOffsetM_ = Vec3d::Zero();  // true minus solved, horizontal, at the first frame
+    double heightOffsetM_ = 0;           // true minus solved root height at the first frame
 };
 
 // The subject's skeleton measured from true frames: each bone vector in its parent's frame,

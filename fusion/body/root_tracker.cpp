@@ -57,6 +57,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     floorYM = 0;
     velocity_.setZero();
     smoothVelocity_.setZero();
+    fusedVelocity_.setZero();
     phase_ = lowestIndex < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
     point_ = lowestIndex;
     freeFallCount_ = 0;
@@ -73,7 +74,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
 }
 
 void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet, double dtS,
-                         std::optional<double> rootSpecificForceMps2) {
+                         const std::optional<Vec3d>& rootSpecificForceMps2) {
     if (!started_) {
         reset(d, pose);
         return;
@@ -84,22 +85,33 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         minY = std::min(minY, p.y());
     }
 
-    freeFallCount_ = rootSpecificForceMps2 && *rootSpecificForceMps2 < options_.freeFallMps2
-                         ? freeFallCount_ + 1
-                         : 0;
+    const auto& force = rootSpecificForceMps2;
+    freeFallCount_ = force && force->norm() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
     if (freeFallCount_ == 1) {
-        takeoffVelocity_ = velocity_;  // before the feet, now unloaded, stop moving the root
+        // The take-off was during this frame, so the root's state at its start (the feet, now
+        // unloaded, stop carrying the root, and they rarely leave the floor at a frame's start).
+        takeoffVelocity_ = fusedVelocity_;
+        takeoffRoot_ = root_;
+        freeFallS_ = 0;
     }
-    if (phase_ != ContactPhase::Flight && freeFallCount_ >= options_.flightFrames) {
+    // Flight starts once per free fall: a landing while the accelerometer still reads free fall
+    // (a take-off velocity a little low) stays landed. It starts where the ballistic path from
+    // the take-off has got to by the previous frame: the frames that confirmed the free fall
+    // held the root on the feet, which no longer carry it.
+    if (phase_ != ContactPhase::Flight && freeFallCount_ == options_.flightFrames) {
         phase_ = ContactPhase::Flight;
         point_ = -1;
-        velocity_ = takeoffVelocity_;
+        const Vec3d g(0, options_.gravityMps2, 0);
+        velocity_ = takeoffVelocity_ - g * freeFallS_;
+        root_ = takeoffRoot_ + (takeoffVelocity_ - 0.5 * g * freeFallS_) * freeFallS_;
     }
 
     Vec3d next = root_;
     if (phase_ == ContactPhase::Flight) {
-        velocity_.y() -= options_.gravityMps2 * dtS;
+        // Exact for constant gravity: the path is a parabola.
         next = root_ + velocity_ * dtS;
+        next.y() -= 0.5 * options_.gravityMps2 * dtS * dtS;
+        velocity_.y() -= options_.gravityMps2 * dtS;
         if (next.y() + minY <= floorYM && velocity_.y() <= 0) {
             // Landing: the lowest foot point touches the floor and becomes the anchor.
             int lowest = 0;
@@ -113,7 +125,6 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             phase_ = lowest < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
             anchor_ = next + r[static_cast<std::size_t>(lowest)];
             anchor_.y() = floorYM;
-            freeFallCount_ = 0;
             ++stanceChanges_;
         }
     } else {
@@ -157,7 +168,18 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         const double a = dtS / (options_.velocityTimeConstantS + dtS);
         smoothVelocity_ += a * (velocity_ - smoothVelocity_);
     }
+    if (force && dtS > 0) {
+        // Complementary: the accelerometer over short times, the contacts over long ones.
+        fusedVelocity_ += (*force - Vec3d(0, options_.gravityMps2, 0)) * dtS;
+        fusedVelocity_ +=
+            dtS / (options_.takeoffTimeConstantS + dtS) * (velocity_ - fusedVelocity_);
+    } else {
+        fusedVelocity_ = velocity_;
+    }
     root_ = next;
+    if (freeFallCount_ > 0) {
+        freeFallS_ += dtS;
+    }
     const Vec3d shift = root_ - pose.positionM[0];
     for (auto& p : pose.positionM) {
         p += shift;

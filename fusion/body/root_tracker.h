@@ -26,6 +26,10 @@ struct ContactOptions {
     // for flightFrames frames; it ends when a foot reaches the floor.
     double freeFallMps2 = 3.0;
     int flightFrames = 2;
+    // The take-off velocity: the root's velocity from the contacts, complemented by the pelvis
+    // accelerometer with this time constant (s). At the end of a push-off the feet leave the
+    // floor gradually and the contacts no longer see the root's speed; the accelerometer does.
+    double takeoffTimeConstantS = 0.3;
     double gravityMps2 = 9.81;
 };
 
@@ -49,9 +53,10 @@ public:
     // One frame: pose has orientations and positions from FK with its root at the origin
     // (relative positions); feet velocities relative to the root (root velocity excluded).
     // Moves the pose's positions to the new root. rootSpecificForceMps2: the pelvis
-    // accelerometer's |a - g| when known (for flight detection).
+    // accelerometer's reading (specific force, a - g) in the skeleton world frame, when known:
+    // it tells a flight phase (free fall: about zero) and the velocity at take-off.
     void update(const Dimensions& d, Pose& pose, const FootState& relativeFeet, double dtS,
-                std::optional<double> rootSpecificForceMps2 = std::nullopt);
+                const std::optional<Vec3d>& rootSpecificForceMps2 = std::nullopt);
 
     const Vec3d& rootM() const { return root_; }
     const Vec3d& rootVelocityMps() const { return velocity_; }
@@ -64,6 +69,9 @@ private:
     Vec3d root_ = Vec3d::Zero();
     Vec3d velocity_ = Vec3d::Zero();
     Vec3d takeoffVelocity_ = Vec3d::Zero();
+    Vec3d takeoffRoot_ = Vec3d::Zero();     // where the root was when the free fall began
+    double freeFallS_ = 0;                  // since then
+    Vec3d fusedVelocity_ = Vec3d::Zero();   // contacts and pelvis accelerometer, for take-off
     Vec3d smoothVelocity_ = Vec3d::Zero();  // low-passed root velocity, for the predictions
     Vec3d anchor_ = Vec3d::Zero();          // world position of the contact point
     int point_ = -1;

@@ -148,7 +148,7 @@ TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
     // Push-off: from a 60 deg crouch to 20 deg in 0.2 s, feet on the floor (1 g). The hips rise
     // at 2 L sin(a) da/dt, about 1 m/s at the end.
     for (int k = 0; k <= 20; ++k) {
-        s.solve(frameOf(crouch((60 - 40 * k / 20.0) * kDeg)), 0.01, 9.81);
+        s.solve(frameOf(crouch((60 - 40 * k / 20.0) * kDeg)), 0.01, Vec3d(0, 9.81, 0));
     }
     EXPECT_NE(s.rootTracker().phase(), ContactPhase::Flight);
     const double takeoffY = s.pose().positionM[0].y();
@@ -157,7 +157,7 @@ TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
     bool flew = false;
     double top = 0;
     for (int k = 0; k < 100; ++k) {
-        s.solve(frameOf(crouch(20 * kDeg)), 0.01, 0.2);
+        s.solve(frameOf(crouch(20 * kDeg)), 0.01, Vec3d(0, 0.2, 0));
         flew = flew || s.rootTracker().phase() == ContactPhase::Flight;
         top = std::max(top, s.pose().positionM[0].y());
     }

@@ -1,14 +1,23 @@
 // `caphub evaluate`: the body solver scored through the virtual suit's whole path (chip models,
 // drivers, FusionStage, BodyStage with its T-pose calibration) against the simulation's ground
 // truth, compared with the ideal-orientation evaluation of tests/body, and its command line.
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <numeric>
 #include <sstream>
+#include <string>
+#include <vector>
 
+#include <Eigen/Geometry>
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "board/loader.h"
+#include "board/sim/joint_map.h"
 #include "firmware/calibration_file.h"
 #include "firmware/evaluation.h"
 #include "tests/body/body_evaluation.h"
@@ -33,6 +42,160 @@ firmware::EvaluateOptions idealOptions(double strapDeg) {
     o.strapDeg = strapDeg;
     o.poseRateHz = 60;
     return o;
+}
+
+// A standing vertical jump written as a CMU clip (cmu_12_01's hierarchy and its T-pose frame 0,
+// 120 Hz): stand 1 s, crouch 0.25 m, push off at constant acceleration to 1.4 m/s, 0.29 s of
+// flight (apex 0.10 m above take-off) with the legs held, land with the push-off mirrored,
+// stand up, stand 1 s. On the floor each foot stays where it is: per leg, two-link inverse
+// kinematics in the sagittal plane (the frame-0 Z rotation that makes the leg straight, then a
+// flexion about the world X axis), the foot kept at its standing orientation.
+constexpr double kJumpTakeoffMps = 1.4;
+constexpr double kGravityMps2 = 9.81;
+
+std::string jumpClip() {
+    std::ifstream in(kWalk);
+    std::string header;
+    std::string line;
+    std::map<std::string, int> channelOf;  // joint -> its first channel
+    std::string joint;
+    int channels = 0;
+    while (std::getline(in, line) && line.find("MOTION") == std::string::npos) {
+        header += line + "\n";
+        std::istringstream words(line);
+        std::string word;
+        words >> word;
+        if (word == "ROOT" || word == "JOINT") {
+            words >> joint;
+        } else if (word == "CHANNELS") {
+            int n = 0;
+            words >> n;
+            channelOf[joint] = channels;
+            channels += n;
+        }
+    }
+    std::getline(in, line);  // Frames:
+    std::getline(in, line);  // Frame Time:
+    std::getline(in, line);  // frame 0, the T-pose
+    std::vector<double> tpose;
+    {
+        std::istringstream values(line);
+        double v = 0;
+        while (values >> v) {
+            tpose.push_back(v);
+        }
+    }
+    constexpr double kUnitM = board::sim::kCmuUnitM;
+    constexpr double kDeg = 180.0 / 3.14159265358979323846;
+    using Eigen::AngleAxisd;
+    using Eigen::Matrix3d;
+    using Eigen::Vector3d;
+    auto rx = [](double a) { return Matrix3d(AngleAxisd(a, Vector3d::UnitX())); };
+    auto rz = [](double a) { return Matrix3d(AngleAxisd(a, Vector3d::UnitZ())); };
+    auto setRotation = [&](std::vector<double>& f, const std::string& j, const Matrix3d& r) {
+        const Vector3d zyx = r.eulerAngles(2, 1, 0);  // r = Rz Ry Rx, the channels' order
+        for (int k = 0; k < 3; ++k) {
+            f[static_cast<std::size_t>(channelOf.at(j) + k)] = zyx[k] * kDeg;
+        }
+    };
+    // Per leg: the straightening Z rotation of frame 0 and the straightened thigh and shin.
+    struct Leg {
+        std::string up, knee, foot;
+        double straight = 0;  // rad
+        double thighM = 0, shinM = 0;
+    };
+    std::array<Leg, 2> legs{Leg{"LeftUpLeg", "LeftLeg", "LeftFoot"},
+                            Leg{"RightUpLeg", "RightLeg", "RightFoot"}};
+    const std::array<Vector3d, 2> thigh{Vector3d(2.03633, -5.59477, 0),
+                                        Vector3d(-2.09328, -5.75123, 0)};
+    const std::array<Vector3d, 2> shin{Vector3d(2.74354, -7.53782, 0),
+                                       Vector3d(-2.65375, -7.29113, 0)};
+    for (std::size_t k = 0; k < 2; ++k) {
+        legs[k].straight = tpose[static_cast<std::size_t>(channelOf.at(legs[k].up))] / kDeg;
+        legs[k].thighM = -(rz(legs[k].straight) * thigh[k]).y() * kUnitM;
+        legs[k].shinM = -(rz(legs[k].straight) * shin[k]).y() * kUnitM;
+    }
+    // Each ankle stands where the shorter straight leg puts it.
+    const double standM = std::min(legs[0].thighM + legs[0].shinM, legs[1].thighM + legs[1].shinM);
+
+    // The root's height below standing (m) and the legs' reach below straight (m), by phase.
+    // The legs stretch on for kSettleS after take-off, slowing to a stop, and stretch the same
+    // way to meet the floor, so that the feet leave and meet it with the velocity the body
+    // gives them (the simulation's smoothing would otherwise lift them before take-off).
+    const double lowM = -0.25;
+    const double takeoffM = -0.05;
+    constexpr double kSettleS = 0.05;
+    const double pushS = 2 * (takeoffM - lowM) / kJumpTakeoffMps;
+    const double pushMps2 = kJumpTakeoffMps / pushS;
+    const double flightS = 2 * kJumpTakeoffMps / kGravityMps2;
+    const std::array<double, 6> phaseS{1.0, 0.7, pushS, flightS, pushS, 0.8};  // then 1 s
+    std::array<double, 7> start{};
+    for (std::size_t k = 0; k < phaseS.size(); ++k) {
+        start[k + 1] = start[k] + phaseS[k];
+    }
+    auto ease = [](double from, double to, double x) {
+        return from + (to - from) * 0.5 * (1 - std::cos(3.14159265358979323846 * x));
+    };
+    auto stretch = [&](double fromFloorS) {
+        const double s = std::min(fromFloorS, kSettleS);
+        return takeoffM + kJumpTakeoffMps * (s - s * s / (2 * kSettleS));
+    };
+    struct Below {
+        double rootM = 0;
+        double legM = 0;
+    };
+    auto below = [&](double t) -> Below {
+        if (t < start[1] || t >= start[6]) {
+            return {};
+        }
+        double r = 0;
+        if (t < start[2]) {
+            r = ease(0, lowM, (t - start[1]) / phaseS[1]);
+        } else if (t < start[3]) {
+            r = lowM + 0.5 * pushMps2 * (t - start[2]) * (t - start[2]);
+        } else if (t < start[4]) {
+            const double f = t - start[3];
+            return {takeoffM + kJumpTakeoffMps * f - 0.5 * kGravityMps2 * f * f,
+                    stretch(std::min(f, start[4] - t))};
+        } else if (t < start[5]) {
+            r = lowM + 0.5 * pushMps2 * (start[5] - t) * (start[5] - t);
+        } else {
+            r = ease(lowM, 0, (t - start[5]) / phaseS[5]);
+        }
+        return {r, r};
+    };
+
+    constexpr double kFrameS = 1.0 / 120;
+    const int frames = static_cast<int>((start[6] + 1.0) / kFrameS);
+    std::string out = header + "MOTION\n" + fmt::format("Frames: {}\n", frames + 1) +
+                      "Frame Time: .0083333\n" + line + "\n";
+    const double hipsY = tpose[1];
+    for (int i = 0; i < frames; ++i) {
+        const Below b = below(i * kFrameS);
+        std::vector<double> f = tpose;
+        f[1] = hipsY + b.rootM / kUnitM;
+        for (const Leg& leg : legs) {
+            // The ankle stays straight below the hip, standM + legM under it: the knee's
+            // flexion from the law of cosines, the hip's so that the shin comes back under it.
+            const double reach = std::min(standM + b.legM, leg.thighM + leg.shinM);
+            const double c = (reach * reach - leg.thighM * leg.thighM - leg.shinM * leg.shinM) /
+                             (2 * leg.thighM * leg.shinM);
+            const double knee = std::acos(std::clamp(c, -1.0, 1.0));
+            const double hip =
+                -std::atan2(leg.shinM * std::sin(knee), leg.thighM + leg.shinM * std::cos(knee));
+            const Matrix3d straight = rz(leg.straight);
+            const Matrix3d upWorld = rx(hip) * straight;
+            const Matrix3d kneeWorld = rx(hip + knee) * straight;
+            setRotation(f, leg.up, upWorld);
+            setRotation(f, leg.knee, upWorld.transpose() * kneeWorld);
+            setRotation(f, leg.foot, kneeWorld.transpose() * straight);  // foot as when standing
+        }
+        for (std::size_t k = 0; k < f.size(); ++k) {
+            out += fmt::format("{}{:.5f}", k == 0 ? "" : " ", f[k]);
+        }
+        out += "\n";
+    }
+    return out;
 }
 
 TEST(EvaluateThroughTheFilter, IdealSensorsComeCloseToTheIdealOrientationEvaluation) {
@@ -132,6 +295,34 @@ TEST(EvaluateThroughTheFilter, ThePapersSeventeenJointsMeetTheTargetsOnBothClips
         EXPECT_LE(r->score.independentMeanAngleDeg, 3.0) << clip << "\n" << table;
         EXPECT_LE(r->score.independentMeanPositionM, 0.02) << clip << "\n" << table;
     }
+}
+
+TEST(EvaluateThroughTheFilter, AJumpFliesOnThePelvisAccelerometerAndLandsWhereItTookOff) {
+    // The jump's flight rises 0.10 m above take-off (v^2 / 2g). While the pelvis accelerometer
+    // reads free fall the root tracker flies along a parabola from the take-off velocity
+    // (largest height error 0.023 m measured); without it the lowest foot point stays on the
+    // floor and only the legs' stretch lifts the root (0.064 m). The feet land where they took
+    // off, so the root ends where it started.
+    const fs::path clip = fs::temp_directory_path() / "caphub_evaluate_jump.bvh";
+    {
+        std::ofstream out(clip);
+        out << jumpClip();
+    }
+    const board::Board b = simSuit();
+    firmware::EvaluateOptions o;
+    o.bvh = clip;
+    o.profile = board::sim::ErrorProfile::Ideal;
+    auto r = firmware::evaluateClip(b, o);
+    fs::remove(clip);
+    ASSERT_TRUE(r) << r.error().message;
+    const std::string table = body::formatScoreTable(r->score);
+    const double riseM = kJumpTakeoffMps * kJumpTakeoffMps / (2 * kGravityMps2);
+    ASSERT_GT(riseM, 0.09);
+    EXPECT_LT(r->score.maxHeightErrorM, 0.4 * riseM) << table;
+    EXPECT_LT(r->score.meanHeightErrorM, 0.01) << table;
+    EXPECT_LT(r->score.finalDriftM, 0.05) << table;
+    EXPECT_LE(r->score.independentMeanAngleDeg, 3.0) << table;
+    EXPECT_LE(r->score.independentMeanPositionM, 0.02) << table;
 }
 
 TEST(EvaluateThroughTheFilter, RejectsABoardWithRealBuses) {
