@@ -91,8 +91,7 @@ void BodyStage::onSample(const SensorSample& s) {
     Eigen::Quaternionf q;
     if (s.sensor == pelvisSensor_ && fusion_.specificForce(s.sensor, f) &&
         fusion_.orientation(s.sensor, q)) {
-        pelvisForceSum_ +=
-            calibration_.qEnuWorld().conjugate() * (q.cast<double>() * f.cast<double>());
+        pelvisForceSumEnu_ += q.cast<double>() * f.cast<double>();
         ++pelvisForceCount_;
     }
     // Poses on a fixed grid of the output rate: every grid point the newest sample has passed
@@ -160,8 +159,9 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     // phase (a jump, a running stride) from stance, and the velocity at take-off.
     std::optional<Vec3d> rootSpecificForce;
     if (pelvisForceCount_ > 0) {
-        rootSpecificForce = pelvisForceSum_ / pelvisForceCount_;
-        pelvisForceSum_.setZero();
+        rootSpecificForce =
+            calibration_.qEnuWorld().conjugate() * (pelvisForceSumEnu_ / pelvisForceCount_);
+        pelvisForceSumEnu_.setZero();
         pelvisForceCount_ = 0;
     }
     const body::Pose& pose = solver_.solve(frame, dtS, rootSpecificForce);

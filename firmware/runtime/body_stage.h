@@ -74,8 +74,9 @@ private:
     std::array<Quatd, body::kSegmentCount> nominal_;
     std::vector<int> sensorOfSegment_;  // segment -> board sensor, -1 when none
     int pelvisSensor_ = -1;
-    // The pelvis accelerometer's readings since the last pose, skeleton world frame (m/s^2).
-    Vec3d pelvisForceSum_ = Vec3d::Zero();
+    // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
+    // their mean goes to the skeleton world frame once per pose.
+    Vec3d pelvisForceSumEnu_ = Vec3d::Zero();
     int pelvisForceCount_ = 0;
     body::BodyCalibration calibration_;
     bool calibrated_ = false;

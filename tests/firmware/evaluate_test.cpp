@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <numeric>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -86,7 +86,7 @@ std::string jumpClip() {
         }
     }
     constexpr double kUnitM = board::sim::kCmuUnitM;
-    constexpr double kDeg = 180.0 / 3.14159265358979323846;
+    constexpr double kRadToDeg = 180.0 / std::numbers::pi;
     using Eigen::AngleAxisd;
     using Eigen::Matrix3d;
     using Eigen::Vector3d;
@@ -95,7 +95,7 @@ std::string jumpClip() {
     auto setRotation = [&](std::vector<double>& f, const std::string& j, const Matrix3d& r) {
         const Vector3d zyx = r.eulerAngles(2, 1, 0);  // r = Rz Ry Rx, the channels' order
         for (int k = 0; k < 3; ++k) {
-            f[static_cast<std::size_t>(channelOf.at(j) + k)] = zyx[k] * kDeg;
+            f[static_cast<std::size_t>(channelOf.at(j) + k)] = zyx[k] * kRadToDeg;
         }
     };
     // Per leg: the straightening Z rotation of frame 0 and the straightened thigh and shin.
@@ -111,7 +111,7 @@ std::string jumpClip() {
     const std::array<Vector3d, 2> shin{Vector3d(2.74354, -7.53782, 0),
                                        Vector3d(-2.65375, -7.29113, 0)};
     for (std::size_t k = 0; k < 2; ++k) {
-        legs[k].straight = tpose[static_cast<std::size_t>(channelOf.at(legs[k].up))] / kDeg;
+        legs[k].straight = tpose[static_cast<std::size_t>(channelOf.at(legs[k].up))] / kRadToDeg;
         legs[k].thighM = -(rz(legs[k].straight) * thigh[k]).y() * kUnitM;
         legs[k].shinM = -(rz(legs[k].straight) * shin[k]).y() * kUnitM;
     }
@@ -134,7 +134,7 @@ std::string jumpClip() {
         start[k + 1] = start[k] + phaseS[k];
     }
     auto ease = [](double from, double to, double x) {
-        return from + (to - from) * 0.5 * (1 - std::cos(3.14159265358979323846 * x));
+        return from + (to - from) * 0.5 * (1 - std::cos(std::numbers::pi * x));
     };
     auto stretch = [&](double fromFloorS) {
         const double s = std::min(fromFloorS, kSettleS);
