@@ -41,6 +41,7 @@ BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWr
               maskOf(board)),
       mask_(maskOf(board)),
       sensorOfSegment_(body::kSegmentCount, -1),
+      held_(board.sensors.size()),
       sum_(board.sensors.size(), Eigen::Vector4d::Zero()),
       count_(board.sensors.size(), 0) {
     nominal_.fill(Quatd::Identity());
@@ -64,6 +65,23 @@ void BodyStage::onSample(const SensorSample& s) {
     if (!first_) {
         first_ = t;
         nextFrame_ = t;
+    }
+    Eigen::Quaternionf qs;
+    if (s.sensor >= 0 && static_cast<std::size_t>(s.sensor) < held_.size() &&
+        fusion_.orientation(s.sensor, qs)) {
+        auto& h = held_[static_cast<std::size_t>(s.sensor)];
+        if (h.count > 0 && t > h.latestT) {
+            h.previous = h.latest;
+            h.previousT = h.latestT;
+            h.count = 2;
+        } else if (h.count == 0) {
+            h.count = 1;
+        }
+        h.latest = qs;
+        h.latestT = t;
+        if (!fusion_.angularRate(s.sensor, h.rateRadS)) {
+            h.rateRadS.setZero();
+        }
     }
     if (!calibrated_ && options_.calibrate && calibrationError_.empty()) {
         const Timestamp from = *first_ + options_.settle;
@@ -106,7 +124,13 @@ void BodyStage::onSample(const SensorSample& s) {
     }
 }
 
-void BodyStage::onEvent(const RuntimeEvent&) {}
+void BodyStage::onEvent(const RuntimeEvent& e) {
+    // A lost sensor's filter restarts: its held orientations are stale.
+    if (e.kind == RuntimeEvent::Kind::SensorLost && e.sensor >= 0 &&
+        static_cast<std::size_t>(e.sensor) < held_.size()) {
+        held_[static_cast<std::size_t>(e.sensor)].count = 0;
+    }
+}
 
 void BodyStage::calibrate(Timestamp t) {
     body::SensorFrame frame;
@@ -148,7 +172,7 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     for (int seg = 0; seg < body::kSegmentCount; ++seg) {
         const int i = sensorOfSegment_[static_cast<std::size_t>(seg)];
         Eigen::Quaternionf q;
-        if (i >= 0 && fusion_.orientation(i, q)) {
+        if (i >= 0 && fusion_.orientation(i, q) && orientationAt(i, t, q)) {
             frame.qEnuSensor[static_cast<std::size_t>(seg)] = q.cast<double>();
             frame.mask |= body::SegmentMask{1} << seg;
         }
@@ -176,6 +200,35 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
         (void)writer_->writePose(t, pose.positionM[0].cast<float>(), joints_);
     }
     latency_.add(clock_.now() - newestSample);
+}
+
+bool BodyStage::orientationAt(int sensor, Timestamp t, Eigen::Quaternionf& q) const {
+    const auto& h = held_[static_cast<std::size_t>(sensor)];
+    if (h.count == 0) {
+        return false;
+    }
+    if (t <= h.latestT) {
+        // Between the two latest (or at the only one, or before it: held there).
+        const double span = toSeconds(h.latestT - h.previousT);
+        const double along = h.count < 2 || span <= 0
+                                 ? 1.0
+                                 : std::clamp(toSeconds(t - h.previousT) / span, 0.0, 1.0);
+        q = h.previous.slerp(static_cast<float>(along), h.latest).normalized();
+        return true;
+    }
+    // Past the latest (the sample for t has not arrived yet): on at the gyroscope's rate, as the
+    // filter's next prediction would, for at most one interval; a sensor silent for longer is
+    // held where it was.
+    double ahead = toSeconds(t - h.latestT);
+    if (h.count == 2) {
+        ahead = std::min(ahead, toSeconds(h.latestT - h.previousT));
+    }
+    const float angle = h.rateRadS.norm() * static_cast<float>(ahead);
+    q = angle > 0
+            ? (h.latest * Eigen::Quaternionf(Eigen::AngleAxisf(angle, h.rateRadS.normalized())))
+                  .normalized()
+            : h.latest;
+    return true;
 }
 
 void BodyStage::feedBackAcceleration(double dtS) {

@@ -60,6 +60,9 @@ public:
 private:
     void calibrate(Timestamp t);
     void solveFrame(Timestamp t, Timestamp newestSample);
+    // A sensor's orientation at t: between its two latest samples, or carried on past the latest
+    // at its gyroscope's rate for at most one sample interval. False when it has none.
+    bool orientationAt(int sensor, Timestamp t, Eigen::Quaternionf& q) const;
     // The body's horizontal acceleration from the root's tracked velocity, to the filters.
     void feedBackAcceleration(double dtS);
 
@@ -73,6 +76,19 @@ private:
     body::SegmentMask mask_ = 0;
     std::array<Quatd, body::kSegmentCount> nominal_;
     std::vector<int> sensorOfSegment_;  // segment -> board sensor, -1 when none
+    // Per sensor its two latest orientations and their sample times. Poses are solved on a fixed
+    // grid that the sensors' samples do not fall on (60 Hz poses from 100 Hz sensors): taken as
+    // they are, the orientations would be 0-10 ms old in a repeating pattern, and the joint
+    // rates (the foot contacts' velocities) would swing by tens of percent from pose to pose.
+    struct HeldOrientation {
+        Eigen::Quaternionf previous = Eigen::Quaternionf::Identity();
+        Eigen::Quaternionf latest = Eigen::Quaternionf::Identity();
+        Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();  // the latest gyro, sensor frame
+        Timestamp previousT{};
+        Timestamp latestT{};
+        int count = 0;  // orientations held: 0, 1 or 2
+    };
+    std::vector<HeldOrientation> held_;
     int pelvisSensor_ = -1;
     // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
     // their mean goes to the skeleton world frame once per pose.

@@ -6,6 +6,7 @@ FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer,
                          Calibrations calibrations)
     : latest_(board.sensors.size(), Eigen::Quaternionf::Identity()),
       latestAcc_(board.sensors.size(), Eigen::Vector3f::Zero()),
+      latestGyr_(board.sensors.size(), Eigen::Vector3f::Zero()),
       valid_(board.sensors.size(), false),
       calibrations_(std::move(calibrations)),
       writer_(writer) {
@@ -48,6 +49,7 @@ void FusionStage::onSample(const SensorSample& s) {
     out.normalize();
     latest_[static_cast<std::size_t>(s.sensor)] = out;
     latestAcc_[static_cast<std::size_t>(s.sensor)] = c.accMps2.cast<float>();
+    latestGyr_[static_cast<std::size_t>(s.sensor)] = c.gyrRadS.cast<float>();
     valid_[static_cast<std::size_t>(s.sensor)] = true;
     ++updates_;
     if (writer_ != nullptr && writer_->error() == 0) {
@@ -93,6 +95,14 @@ bool FusionStage::specificForce(int sensor, Eigen::Vector3f& f) const {
         return false;
     }
     f = latestAcc_[static_cast<std::size_t>(sensor)];
+    return true;
+}
+
+bool FusionStage::angularRate(int sensor, Eigen::Vector3f& w) const {
+    if (!hasLatest(sensor)) {
+        return false;
+    }
+    w = latestGyr_[static_cast<std::size_t>(sensor)];
     return true;
 }
 

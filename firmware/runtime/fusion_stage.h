@@ -33,6 +33,9 @@ public:
     // The latest calibrated accelerometer reading of a sensor (specific force, sensor frame,
     // m/s^2), and whether it has one.
     bool specificForce(int sensor, Eigen::Vector3f& f) const;
+    // The latest calibrated gyroscope reading of a sensor (sensor frame, rad/s), and whether it
+    // has one.
+    bool angularRate(int sensor, Eigen::Vector3f& w) const;
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
@@ -48,6 +51,7 @@ private:
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Eigen::Quaternionf> latest_;
     std::vector<Eigen::Vector3f> latestAcc_;
+    std::vector<Eigen::Vector3f> latestGyr_;
     std::vector<bool> valid_;
     Calibrations calibrations_;
     fusion::Vec3<float> bodyAccEnu_{};

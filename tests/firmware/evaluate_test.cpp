@@ -211,11 +211,12 @@ TEST(EvaluateThroughTheFilter, IdealSensorsComeCloseToTheIdealOrientationEvaluat
     // sample that passes two grid points.
     EXPECT_NEAR(real->score.frames, 60 * 4.35, 10) << tables;
     // What the filter adds on ideal chips: the registers' quantisation, the inclination pulled
-    // by the walk's accelerations, and orientations up to one sample period (1/~112 Hz) older
-    // than the pose's grid time; at the limbs' rates of up to ~5 rad/s that is below 2.6 deg at
-    // the worst instant and well below it on average. So each joint within 2 deg of the ideal
-    // evaluation's error (the pelvis, whose world orientation carries the filter's whole
-    // inclination and heading error, 0.45 deg measured), the mean within 0.75.
+    // by the walk's accelerations, and the filter's step (the gyro sample's rate is taken over
+    // the interval it ends, which puts the orientation about half a sample ahead of its time:
+    // 5 ms at 100 Hz, below 1.5 deg at the limbs' rates of up to ~5 rad/s). So each joint within
+    // 2 deg of the ideal evaluation's error (0.74 deg the largest measured; the pelvis, whose
+    // world orientation carries the filter's whole inclination and heading error, 0.30 deg), the
+    // mean within 0.75 (0.28 measured).
     for (int i = 0; i < body::kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);
         EXPECT_NEAR(real->score.angleDeg[u], ideal->angleDeg[u], 2.0)
@@ -247,9 +248,9 @@ TEST(EvaluateThroughTheFilter, StrappedSensorsWithoutACalibrationScoreWorseThanA
 TEST(EvaluateThroughTheFilter, TheBodysAccelerationKeepsTheFiltersLevelAsTheWalkStarts) {
     // The lead-in's blend takes the subject from standing to walking at 0.9 m/s in 1.5 s. Every
     // filter that is not told takes that acceleration for a share of gravity and tilts forward
-    // by about a degree for seconds (the pelvis: 1.29 deg mean measured); told the root's
+    // by about a degree for seconds (the pelvis: 1.27 deg mean measured); told the root's
     // acceleration from the foot contacts (BodyStage::Options::aidFilters), the pelvis is
-    // within half a degree (0.45 measured), and the legs' joints sit closer to the truth.
+    // within half a degree (0.30 measured), and the legs' joints sit closer to the truth.
     const board::Board b = simSuit();
     auto aided = firmware::evaluateClip(b, idealOptions(0));
     ASSERT_TRUE(aided) << aided.error().message;
@@ -271,7 +272,7 @@ TEST(EvaluateThroughTheFilter, ThePapersSeventeenJointsMeetTheTargetsOnBothClips
     // (`caphub calibrate gyro|accel|mag` into one file, in that order), then both shared clips
     // through fusion and body after the T-pose calibration. Targets: mean joint angle error
     // <= 3 deg and mean joint position error <= 2 cm from the root, on the paper's 17 joints
-    // (measured with seed 1: 1.108 deg / 1.760 cm and 2.611 deg / 1.543 cm). The drift target
+    // (measured with seed 1: 1.146 deg / 1.784 cm and 2.680 deg / 1.572 cm). The drift target
     // is not met on cmu_12_01 (docs/skeleton.md) and is not asserted here.
     const fs::path cal = fs::temp_directory_path() / "caphub_evaluate_targets_cal.toml";
     fs::remove(cal);
