@@ -66,9 +66,8 @@ void BodyStage::onSample(const SensorSample& s) {
         first_ = t;
         nextFrame_ = t;
     }
-    Eigen::Quaternionf qs;
-    if (s.sensor >= 0 && static_cast<std::size_t>(s.sensor) < held_.size() &&
-        fusion_.orientation(s.sensor, qs)) {
+    const FusionStage::Latest* now = fusion_.latest(s.sensor);
+    if (now != nullptr) {
         auto& h = held_[static_cast<std::size_t>(s.sensor)];
         if (h.count > 0 && t > h.latestT) {
             h.previous = h.latest;
@@ -77,20 +76,18 @@ void BodyStage::onSample(const SensorSample& s) {
         } else if (h.count == 0) {
             h.count = 1;
         }
-        h.latest = qs;
+        h.latest = now->orientation;
         h.latestT = t;
-        if (!fusion_.angularRate(s.sensor, h.rateRadS)) {
-            h.rateRadS.setZero();
-        }
+        h.rateRadS = now->rateRadS;
     }
     if (!calibrated_ && options_.calibrate && calibrationError_.empty()) {
         const Timestamp from = *first_ + options_.settle;
         if (t >= from + options_.average) {
             calibrate(t);
         } else if (t >= from) {
-            Eigen::Quaternionf q;
             const auto i = static_cast<std::size_t>(s.sensor);
-            if (fusion_.orientation(s.sensor, q)) {
+            if (now != nullptr) {
+                const Eigen::Quaternionf& q = now->orientation;
                 Eigen::Vector4d v(q.w(), q.x(), q.y(), q.z());
                 // q and -q are one rotation: add each on the side of the running sum.
                 if (v.dot(sum_[i]) < 0) {
@@ -105,11 +102,9 @@ void BodyStage::onSample(const SensorSample& s) {
     if (!calibrated_) {
         return;
     }
-    Eigen::Vector3f f;
-    Eigen::Quaternionf q;
-    if (s.sensor == pelvisSensor_ && fusion_.specificForce(s.sensor, f) &&
-        fusion_.orientation(s.sensor, q)) {
-        pelvisForceSumEnu_ += q.cast<double>() * f.cast<double>();
+    if (s.sensor == pelvisSensor_ && now != nullptr) {
+        pelvisForceSumEnu_ +=
+            now->orientation.cast<double>() * now->specificForceMps2.cast<double>();
         ++pelvisForceCount_;
     }
     // Poses on a fixed grid of the output rate: every grid point the newest sample has passed
@@ -172,7 +167,7 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     for (int seg = 0; seg < body::kSegmentCount; ++seg) {
         const int i = sensorOfSegment_[static_cast<std::size_t>(seg)];
         Eigen::Quaternionf q;
-        if (i >= 0 && fusion_.orientation(i, q) && orientationAt(i, t, q)) {
+        if (i >= 0 && fusion_.latest(i) != nullptr && orientationAt(i, t, q)) {
             frame.qEnuSensor[static_cast<std::size_t>(seg)] = q.cast<double>();
             frame.mask |= body::SegmentMask{1} << seg;
         }
@@ -207,22 +202,20 @@ bool BodyStage::orientationAt(int sensor, Timestamp t, Eigen::Quaternionf& q) co
     if (h.count == 0) {
         return false;
     }
+    if (h.count == 1) {
+        q = h.latest;  // no interval yet to interpolate or carry on over
+        return true;
+    }
+    const double span = toSeconds(h.latestT - h.previousT);  // > 0: samples are kept in order
     if (t <= h.latestT) {
-        // Between the two latest (or at the only one, or before it: held there).
-        const double span = toSeconds(h.latestT - h.previousT);
-        const double along = h.count < 2 || span <= 0
-                                 ? 1.0
-                                 : std::clamp(toSeconds(t - h.previousT) / span, 0.0, 1.0);
+        const double along = std::max(0.0, toSeconds(t - h.previousT) / span);
         q = h.previous.slerp(static_cast<float>(along), h.latest).normalized();
         return true;
     }
     // Past the latest (the sample for t has not arrived yet): on at the gyroscope's rate, as the
     // filter's next prediction would, for at most one interval; a sensor silent for longer is
     // held where it was.
-    double ahead = toSeconds(t - h.latestT);
-    if (h.count == 2) {
-        ahead = std::min(ahead, toSeconds(h.latestT - h.previousT));
-    }
+    const double ahead = std::min(toSeconds(t - h.latestT), span);
     const float angle = h.rateRadS.norm() * static_cast<float>(ahead);
     q = angle > 0
             ? (h.latest * Eigen::Quaternionf(Eigen::AngleAxisf(angle, h.rateRadS.normalized())))

@@ -4,9 +4,7 @@ namespace caphub::firmware {
 
 FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer,
                          Calibrations calibrations)
-    : latest_(board.sensors.size(), Eigen::Quaternionf::Identity()),
-      latestAcc_(board.sensors.size(), Eigen::Vector3f::Zero()),
-      latestGyr_(board.sensors.size(), Eigen::Vector3f::Zero()),
+    : latest_(board.sensors.size()),
       valid_(board.sensors.size(), false),
       calibrations_(std::move(calibrations)),
       writer_(writer) {
@@ -47,9 +45,10 @@ void FusionStage::onSample(const SensorSample& s) {
     const auto q = f.quat();
     Eigen::Quaternionf out(q.w, q.x, q.y, q.z);
     out.normalize();
-    latest_[static_cast<std::size_t>(s.sensor)] = out;
-    latestAcc_[static_cast<std::size_t>(s.sensor)] = c.accMps2.cast<float>();
-    latestGyr_[static_cast<std::size_t>(s.sensor)] = c.gyrRadS.cast<float>();
+    Latest& now = latest_[static_cast<std::size_t>(s.sensor)];
+    now.orientation = out;
+    now.specificForceMps2 = c.accMps2.cast<float>();
+    now.rateRadS = c.gyrRadS.cast<float>();
     valid_[static_cast<std::size_t>(s.sensor)] = true;
     ++updates_;
     if (writer_ != nullptr && writer_->error() == 0) {
@@ -77,33 +76,12 @@ std::uint32_t FusionStage::clipEvents(int sensor) const {
     return filters_[static_cast<std::size_t>(sensor)]->clipEvents();
 }
 
-bool FusionStage::hasLatest(int sensor) const {
-    return sensor >= 0 && static_cast<std::size_t>(sensor) < filters_.size() &&
-           valid_[static_cast<std::size_t>(sensor)];
-}
-
-bool FusionStage::orientation(int sensor, Eigen::Quaternionf& q) const {
-    if (!hasLatest(sensor)) {
-        return false;
+const FusionStage::Latest* FusionStage::latest(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size() ||
+        !valid_[static_cast<std::size_t>(sensor)]) {
+        return nullptr;
     }
-    q = latest_[static_cast<std::size_t>(sensor)];
-    return true;
-}
-
-bool FusionStage::specificForce(int sensor, Eigen::Vector3f& f) const {
-    if (!hasLatest(sensor)) {
-        return false;
-    }
-    f = latestAcc_[static_cast<std::size_t>(sensor)];
-    return true;
-}
-
-bool FusionStage::angularRate(int sensor, Eigen::Vector3f& w) const {
-    if (!hasLatest(sensor)) {
-        return false;
-    }
-    w = latestGyr_[static_cast<std::size_t>(sensor)];
-    return true;
+    return &latest_[static_cast<std::size_t>(sensor)];
 }
 
 }  // namespace caphub::firmware

@@ -28,14 +28,15 @@ public:
     void onSample(const SensorSample& s) override;
     void onEvent(const RuntimeEvent& e) override;
 
-    // The latest orientation of a sensor (sensor -> ENU), and whether it has one.
-    bool orientation(int sensor, Eigen::Quaternionf& q) const;
-    // The latest calibrated accelerometer reading of a sensor (specific force, sensor frame,
-    // m/s^2), and whether it has one.
-    bool specificForce(int sensor, Eigen::Vector3f& f) const;
-    // The latest calibrated gyroscope reading of a sensor (sensor frame, rad/s), and whether it
-    // has one.
-    bool angularRate(int sensor, Eigen::Vector3f& w) const;
+    // What a sensor's latest sample gave: its orientation (sensor -> ENU) and its calibrated
+    // readings (sensor frame).
+    struct Latest {
+        Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
+        Eigen::Vector3f specificForceMps2 = Eigen::Vector3f::Zero();
+        Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();
+    };
+    // A sensor's latest, or null when it has none (no sample yet, or none since it was lost).
+    const Latest* latest(int sensor) const;
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
@@ -45,13 +46,8 @@ public:
     void setBodyAcceleration(const Eigen::Vector3d& enuMps2);
 
 private:
-    // Whether the sensor exists and has been fused since it was last lost.
-    bool hasLatest(int sensor) const;
-
     std::vector<std::unique_ptr<Filter>> filters_;
-    std::vector<Eigen::Quaternionf> latest_;
-    std::vector<Eigen::Vector3f> latestAcc_;
-    std::vector<Eigen::Vector3f> latestGyr_;
+    std::vector<Latest> latest_;
     std::vector<bool> valid_;
     Calibrations calibrations_;
     fusion::Vec3<float> bodyAccEnu_{};
