@@ -74,6 +74,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     bodyOptions.rateHz = o.poseRateHz;
     bodyOptions.calibrate = o.calibrate;
     bodyOptions.aidFilters = o.aidFilters;
+    bodyOptions.footInertial = o.footInertial;
 
     // The subject holds the calibration pose (the T-pose without one) from the start as long as
     // `caphub run` asks for it (the averaging window and a margin), then blends into the clip. The

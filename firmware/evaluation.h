@@ -47,6 +47,8 @@ struct EvaluateOptions {
     bool measuredSkeleton = true;
     // BodyStage::Options::aidFilters: the filters told the body's acceleration.
     bool aidFilters = true;
+    // BodyStage::Options::footInertial: the planted foot's slip from its own sensor.
+    bool footInertial = true;
 };
 
 struct EvaluateResult {

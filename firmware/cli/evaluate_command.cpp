@@ -31,6 +31,7 @@ struct EvaluateCliOptions {
     std::string skeleton = "clip";
     std::string json;
     bool noBodyAiding = false;
+    bool noFootInertial = false;
 };
 
 int evaluate(const EvaluateCliOptions& c) {
@@ -45,6 +46,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.strapDeg = c.suit.strapDeg;
     o.poseRateHz = c.poseRateHz;
     o.aidFilters = !c.noBodyAiding;
+    o.footInertial = !c.noFootInertial;
     const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
         return kExitUsage;
@@ -135,6 +137,9 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--no-body-aiding", o->noBodyAiding,
                   "Do not tell the filters the body's acceleration (from the foot contacts): "
                   "to see what it does");
+    cmd->add_flag("--no-foot-inertial", o->noFootInertial,
+                  "Do not track the planted foot's slip with its own sensor (the root follows "
+                  "the foot contacts alone): to see what it does");
     cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });
 }
 

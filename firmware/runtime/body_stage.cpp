@@ -51,6 +51,10 @@ BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWr
         nominal_[seg] = board.sensors[i].mounting;
     }
     pelvisSensor_ = sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::Pelvis))];
+    footSensor_ = {sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::LHindfoot))],
+                   sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::RHindfoot))]};
+    footInertial_ = {body::FootInertial(options_.footInertialOptions),
+                     body::FootInertial(options_.footInertialOptions)};
     if (!options_.calibrate) {
         // No calibration pose: the nominal mountings, the subject facing north.
         calibration_.mask = mask_;
@@ -102,6 +106,16 @@ void BodyStage::onSample(const SensorSample& s) {
     if (!calibrated_) {
         return;
     }
+    if (options_.footInertial && now != nullptr) {
+        const auto& h = held_[static_cast<std::size_t>(s.sensor)];
+        for (std::size_t k = 0; k < 2; ++k) {
+            if (s.sensor == footSensor_[k] && h.count == 2) {
+                footInertial_[k].add(
+                    now->orientation.cast<double>(), now->specificForceMps2.cast<double>(),
+                    now->rateRadS.cast<double>(), toSeconds(h.latestT - h.previousT));
+            }
+        }
+    }
     if (s.sensor == pelvisSensor_ && now != nullptr) {
         pelvisForceSumEnu_ +=
             now->orientation.cast<double>() * now->specificForceMps2.cast<double>();
@@ -124,6 +138,11 @@ void BodyStage::onEvent(const RuntimeEvent& e) {
     if (e.kind == RuntimeEvent::Kind::SensorLost && e.sensor >= 0 &&
         static_cast<std::size_t>(e.sensor) < held_.size()) {
         held_[static_cast<std::size_t>(e.sensor)].count = 0;
+        for (std::size_t k = 0; k < 2; ++k) {
+            if (footSensor_[k] == e.sensor) {
+                footInertial_[k].reset();
+            }
+        }
     }
 }
 
@@ -183,7 +202,21 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
         pelvisForceSumEnu_.setZero();
         pelvisForceCount_ = 0;
     }
-    const body::Pose& pose = solver_.solve(frame, dtS, rootSpecificForce);
+    // The feet's dead reckoning, in the skeleton world frame.
+    body::FootSensorMotion feet;
+    const Quatd qWorldEnu = calibration_.qEnuWorld().conjugate();
+    for (std::size_t k = 0; k < 2; ++k) {
+        const int i = footSensor_[k];
+        if (options_.footInertial && i >= 0 && fusion_.latest(i) != nullptr &&
+            footInertial_[k].valid()) {
+            feet.valid[k] = true;
+            feet.still[k] = footInertial_[k].still();
+            feet.velocityMps[k] = qWorldEnu * footInertial_[k].velocityEnuMps();
+            feet.rateRadS[k] = qWorldEnu * footInertial_[k].rateEnuRadS();
+            feet.onFootM[k] = board_.sensors[static_cast<std::size_t>(i)].positionM;
+        }
+    }
+    const body::Pose& pose = solver_.solve(frame, dtS, rootSpecificForce, &feet);
     ++poses_;
     if (options_.aidFilters) {
         feedBackAcceleration(dtS);

@@ -14,6 +14,7 @@
 #include "firmware/runtime/latency_window.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
+#include "fusion/body/foot_inertial.h"
 
 namespace caphub::firmware {
 
@@ -32,6 +33,11 @@ public:
         // Hand the filters the body's horizontal acceleration from the root's tracked motion
         // (FusionStage::setBodyAcceleration), so that starting and stopping do not tilt them.
         bool aidFilters = true;
+        // Track each foot sensor's velocity from the foot's latest still instant
+        // (body::FootInertial), so that the root follows a planted foot that slips as it rolls
+        // off the floor; false: the foot contacts alone.
+        bool footInertial = true;
+        body::FootInertialOptions footInertialOptions;
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations,
@@ -90,6 +96,9 @@ private:
     };
     std::vector<HeldOrientation> held_;
     int pelvisSensor_ = -1;
+    // The feet's sensors (board indices, -1 when none) and their dead reckoning.
+    std::array<int, 2> footSensor_{-1, -1};
+    std::array<body::FootInertial, 2> footInertial_;
     // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
     // their mean goes to the skeleton world frame once per pose.
     Vec3d pelvisForceSumEnu_ = Vec3d::Zero();

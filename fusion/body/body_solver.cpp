@@ -19,7 +19,8 @@ void BodySolver::resetRoot(double xM, double zM) {
 }
 
 const Pose& BodySolver::solve(const SensorFrame& frame, double dtS,
-                              const std::optional<Vec3d>& rootSpecificForceMps2) {
+                              const std::optional<Vec3d>& rootSpecificForceMps2,
+                              const FootSensorMotion* footSensors) {
     const Dimensions& d = skeleton_.dimensions();
     poseSolver_.solve(frame, pose_, &limits_);
     forwardKinematics(d, Vec3d::Zero(), pose_);
@@ -44,7 +45,7 @@ const Pose& BodySolver::solve(const SensorFrame& frame, double dtS,
         root_.reset(d, pose_, resetAtM_.x(), resetAtM_.z());
         first_ = false;
     } else {
-        root_.update(d, pose_, feet_, dtS, rootSpecificForceMps2);
+        root_.update(d, pose_, feet_, dtS, rootSpecificForceMps2, footSensors);
     }
     const Vec3d& rootM = pose_.positionM[0];
     for (int e = 0; e < kEndEffectorCount; ++e) {

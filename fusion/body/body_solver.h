@@ -28,7 +28,8 @@ public:
 
     // One frame, dtS after the previous one. rootSpecificForceMps2: see RootTracker::update.
     const Pose& solve(const SensorFrame& frame, double dtS,
-                      const std::optional<Vec3d>& rootSpecificForceMps2 = std::nullopt);
+                      const std::optional<Vec3d>& rootSpecificForceMps2 = std::nullopt,
+                      const FootSensorMotion* footSensors = nullptr);
 
     const Pose& pose() const { return pose_; }
     const Skeleton& skeleton() const { return skeleton_; }

@@ -74,7 +74,8 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
 }
 
 void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet, double dtS,
-                         const std::optional<Vec3d>& rootSpecificForceMps2) {
+                         const std::optional<Vec3d>& rootSpecificForceMps2,
+                         const FootSensorMotion* footSensors) {
     if (!started_) {
         reset(d, pose);
         return;
@@ -159,6 +160,21 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             point_ = best;
             phase_ = best < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
             anchor_ = here + r[static_cast<std::size_t>(best)];
+        }
+        // The anchored point slips when its foot, rolling off the floor, moves in the world:
+        // the foot's dead reckoning says by how much (the foot is rigid: the point's velocity
+        // is the sensor's plus the rate crossed with the lever from the sensor to the point).
+        const int foot = point_ < 3 ? 0 : 1;
+        const auto uf = static_cast<std::size_t>(foot);
+        if (footSensors != nullptr && footSensors->valid[uf] && !footSensors->still[uf] &&
+            dtS > 0) {
+            const Vec3d sensor = pointOnSegment(pose, idx(foot == 0 ? S::LHindfoot : S::RHindfoot),
+                                                footSensors->onFootM[uf]);
+            const Vec3d slip =
+                footSensors->velocityMps[uf] +
+                footSensors->rateRadS[uf].cross(r[static_cast<std::size_t>(point_)] - sensor);
+            anchor_.x() += slip.x() * dtS;  // along the floor
+            anchor_.z() += slip.z() * dtS;
         }
         next = anchor_ - r[static_cast<std::size_t>(point_)];
         next.y() = floorYM - minY;  // the lowest foot point stands on the floor

@@ -42,6 +42,17 @@ struct FootState {
     std::array<Vec3d, 6> velocityMps{};
 };
 
+// The feet's own sensors by dead reckoning (fusion/body/foot_inertial.h), left then right: where
+// each sits on its hindfoot (segment frame) and, when valid (integrated from a still instant not
+// long ago), its velocity and rate in the skeleton world frame.
+struct FootSensorMotion {
+    std::array<bool, 2> valid{};
+    std::array<bool, 2> still{};
+    std::array<Vec3d, 2> velocityMps{Vec3d::Zero(), Vec3d::Zero()};
+    std::array<Vec3d, 2> rateRadS{Vec3d::Zero(), Vec3d::Zero()};
+    std::array<Vec3d, 2> onFootM{Vec3d::Zero(), Vec3d::Zero()};
+};
+
 class RootTracker {
 public:
     explicit RootTracker(const ContactOptions& options = {}) : options_(options) {}
@@ -55,8 +66,12 @@ public:
     // Moves the pose's positions to the new root. rootSpecificForceMps2: the pelvis
     // accelerometer's reading (specific force, a - g) in the skeleton world frame, when known:
     // it tells a flight phase (free fall: about zero) and the velocity at take-off.
+    // footSensors, when given: the anchored point moves with its foot's measured slip while that
+    // foot is valid and not still (a foot rolling off the floor in a push-off slips forward a
+    // little; the contacts alone take it for still).
     void update(const Dimensions& d, Pose& pose, const FootState& relativeFeet, double dtS,
-                const std::optional<Vec3d>& rootSpecificForceMps2 = std::nullopt);
+                const std::optional<Vec3d>& rootSpecificForceMps2 = std::nullopt,
+                const FootSensorMotion* footSensors = nullptr);
 
     const Vec3d& rootM() const { return root_; }
     const Vec3d& rootVelocityMps() const { return velocity_; }

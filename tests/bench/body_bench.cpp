@@ -1,6 +1,7 @@
 // The full-body solve per frame on the 17-sensor suit: orientations and joint rotations with
 // limit checks, FK, joint rates, the five end-effector Jacobians and twists, foot contacts and
-// root translation with the pelvis accelerometer as the firmware passes it (BodySolver::solve).
+// root translation with the pelvis accelerometer and the feet's dead reckoning as the firmware
+// passes them (BodySolver::solve).
 #include <cmath>
 #include <random>
 #include <vector>
@@ -63,9 +64,16 @@ void BM_FullBodySolve(benchmark::State& state) {
     solver.setCalibration(cal);
     // The pelvis accelerometer in stance (flight check and take-off estimate run every frame).
     const Vec3d pelvisForce(0.4, 9.9, -0.3);
+    // Both feet rolling off the floor (valid, not still): the anchored point's slip runs every
+    // frame.
+    FootSensorMotion feet;
+    feet.valid = {true, true};
+    feet.velocityMps = {Vec3d(0.02, 0.01, 0.05), Vec3d(0.01, 0.0, 0.04)};
+    feet.rateRadS = {Vec3d(0.5, 2.0, 0.1), Vec3d(-0.3, 1.5, 0.2)};
+    feet.onFootM = {Vec3d(0.0, 0.03, 0.06), Vec3d(0.0, 0.03, 0.06)};
     std::size_t k = 0;
     for (auto _ : state) {
-        const Pose& p = solver.solve(frames[k], 0.01, pelvisForce);
+        const Pose& p = solver.solve(frames[k], 0.01, pelvisForce, &feet);
         benchmark::DoNotOptimize(p.positionM[0]);
         k = (k + 1) % frames.size();
     }

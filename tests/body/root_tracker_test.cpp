@@ -129,6 +129,48 @@ TEST(RootTracker, AMovingFootDoesNotTakeOverFromTheStillOneEvenWhenLower) {
     EXPECT_GT(s.pose().positionM[0].z(), 0.1);  // and the body did move forward
 }
 
+TEST(RootTracker, APlantedFootThatSlipsCarriesTheRootWithIt) {
+    // Standing, the left heel anchored. The left foot's sensor reports the foot sliding forward
+    // at 0.1 m/s and turning about the vertical at 0.5 rad/s: the anchored heel moves with the
+    // foot (the sensor's velocity plus the rate crossed with the lever to the heel), and the
+    // root with it. Still or not valid, the report moves nothing.
+    const Dimensions d = dims();
+    const Vec3d onFoot(0.0, 0.03, 0.06);  // the sensor on the hindfoot, segment frame
+    const Vec3d velocity(0.0, 0.0, 0.1);
+    const Vec3d rate(0.0, 0.5, 0.0);
+    auto run = [&](bool valid, bool still) {
+        BodySolver s = makeSolver(d);
+        FootSensorMotion feet;
+        feet.valid = {valid, false};
+        feet.still = {still, false};
+        feet.velocityMps[0] = velocity;
+        feet.rateRadS[0] = rate;
+        feet.onFootM[0] = onFoot;
+        s.solve(frameOf(Pose{}), 0.01, std::nullopt, &feet);
+        const Vec3d start = s.pose().positionM[0];
+        EXPECT_EQ(s.rootTracker().contactPoint(), 0);  // the left heel
+        for (int k = 0; k < 100; ++k) {
+            s.solve(frameOf(Pose{}), 0.01, std::nullopt, &feet);
+        }
+        return Vec3d(s.pose().positionM[0] - start);
+    };
+    const Pose reference = [&] {
+        BodySolver s = makeSolver(d);
+        s.solve(frameOf(Pose{}), 0.01);
+        return s.pose();
+    }();
+    const Vec3d lever = pointOnSegment(reference, idx(S::LHindfoot), d.leftFootPointM[0]) -
+                        pointOnSegment(reference, idx(S::LHindfoot), onFoot);
+    const Vec3d slip = velocity + rate.cross(lever);    // m/s, held for 1 s
+    ASSERT_GT(std::abs(rate.cross(lever).x()), 0.005);  // the lever's share is visible
+    const Vec3d moved = run(true, false);
+    EXPECT_NEAR(moved.x(), slip.x(), 1e-9);
+    EXPECT_NEAR(moved.z(), slip.z(), 1e-9);
+    EXPECT_NEAR(moved.y(), 0.0, 1e-12);  // along the floor only
+    EXPECT_LT(run(true, true).norm(), 1e-12);
+    EXPECT_LT(run(false, false).norm(), 1e-12);
+}
+
 TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
     const Dimensions d = dims();
     BodySolver s = makeSolver(d);

@@ -1,0 +1,42 @@
+#include "fusion/body/foot_inertial.h"
+
+#include <cmath>
+
+namespace caphub::body {
+
+void FootInertial::reset() {
+    velocity_.setZero();
+    lastAcceleration_.setZero();
+    rateEnu_.setZero();
+    sinceStillS_ = 0;
+    quietForS_ = -1;
+    still_ = false;
+    started_ = false;
+}
+
+void FootInertial::add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Vec3d& rateRadS,
+                       double dtS) {
+    const Vec3d acceleration = qEnuSensor * forceMps2 - Vec3d(0, 0, options_.gravityMps2);
+    rateEnu_ = qEnuSensor * rateRadS;
+    const bool quiet = rateRadS.norm() < options_.stillRateRadS &&
+                       std::abs(forceMps2.norm() - options_.gravityMps2) < options_.stillForceMps2;
+    if (!quiet) {
+        quietForS_ = -1;
+    } else {
+        quietForS_ = quietForS_ < 0 ? 0 : quietForS_ + dtS;
+    }
+    // The quiet run's time is measured between its samples: a run of n samples spans n - 1
+    // intervals. Half an interval's slack keeps two samples at 100 Hz still for 0.01 s.
+    still_ = quiet && quietForS_ + 0.5 * dtS >= options_.stillForS;
+    if (still_) {
+        velocity_.setZero();
+        sinceStillS_ = 0;
+        started_ = true;
+    } else if (started_ && dtS > 0) {
+        velocity_ += 0.5 * (acceleration + lastAcceleration_) * dtS;  // trapezoid
+        sinceStillS_ += dtS;
+    }
+    lastAcceleration_ = acceleration;
+}
+
+}  // namespace caphub::body

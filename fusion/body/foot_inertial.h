@@ -1,0 +1,53 @@
+// A foot sensor's velocity by dead reckoning from the foot's latest still instant: its
+// accelerometer, turned into the world by its filter and less gravity, integrated, and set to
+// zero whenever the foot is still (a zero-velocity update). Over the short spans it is used for
+// (a planted foot rolling off after its still mid-stance) it measures what the foot contacts
+// cannot: the planted foot slipping (docs/skeleton.md, "The planted foot's slip").
+#pragma once
+
+#include "fusion/body/skeleton.h"
+
+namespace caphub::body {
+
+struct FootInertialOptions {
+    // Still: the rate below stillRateRadS and the specific force within stillForceMps2 of
+    // gravity, on consecutive samples spanning at least stillForS (at 100 Hz: two samples).
+    double stillRateRadS = 0.7;
+    double stillForceMps2 = 0.7;
+    double stillForS = 0.01;
+    // The velocity is trusted for this long after the latest still instant (s): a stance's roll
+    // off the floor, not a swing (the accelerometer's errors grow with the square of the time).
+    double maxSpanS = 0.6;
+    double gravityMps2 = 9.81;
+};
+
+class FootInertial {
+public:
+    explicit FootInertial(const FootInertialOptions& options = {}) : options_(options) {}
+
+    // One sample: the sensor's orientation (sensor -> ENU), its specific force (m/s^2) and rate
+    // (rad/s) in the sensor frame, dtS after the foot's previous sample.
+    void add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Vec3d& rateRadS, double dtS);
+    // Forget the motion (a sensor lost, a new capture): invalid until the foot is still again.
+    void reset();
+
+    // Integrated from a still instant no longer than maxSpanS ago.
+    bool valid() const { return started_ && (still_ || sinceStillS_ <= options_.maxSpanS); }
+    bool still() const { return still_; }
+    // The sensor's velocity (m/s) and rate (rad/s) in ENU at the latest sample: with them, the
+    // velocity of any point of the rigid foot.
+    const Vec3d& velocityEnuMps() const { return velocity_; }
+    const Vec3d& rateEnuRadS() const { return rateEnu_; }
+
+private:
+    FootInertialOptions options_;
+    Vec3d velocity_ = Vec3d::Zero();
+    Vec3d lastAcceleration_ = Vec3d::Zero();
+    Vec3d rateEnu_ = Vec3d::Zero();
+    double sinceStillS_ = 0;
+    double quietForS_ = -1;  // how long the samples have been quiet; < 0: the latest was not
+    bool still_ = false;
+    bool started_ = false;  // a still instant since the reset
+};
+
+}  // namespace caphub::body

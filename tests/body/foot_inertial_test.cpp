@@ -1,0 +1,101 @@
+// A foot sensor's dead reckoning: still samples zero the velocity, motion integrates the world
+// acceleration from the latest still instant, and the velocity is trusted only for a while.
+#include "fusion/body/foot_inertial.h"
+
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+namespace caphub::body {
+namespace {
+
+constexpr double kG = 9.81;
+constexpr double kDt = 0.01;  // 100 Hz
+
+// A sensor turned arbitrarily in ENU: the dead reckoning must not depend on how it sits.
+const Quatd kTurned =
+    Quatd(Eigen::AngleAxisd(0.7, Vec3d(0.3, -0.5, 0.8).normalized())).normalized();
+
+// The specific force a sensor turned by q reads under the world acceleration a (ENU).
+Vec3d forceFor(const Quatd& q, const Vec3d& a) {
+    return q.conjugate() * (a + Vec3d(0, 0, kG));
+}
+
+void holdStill(FootInertial& f, int samples) {
+    for (int k = 0; k < samples; ++k) {
+        f.add(kTurned, forceFor(kTurned, Vec3d::Zero()), Vec3d(0.01, -0.02, 0.01), kDt);
+    }
+}
+
+// Moving: a rate well above the still threshold and the world acceleration a.
+void move(FootInertial& f, const Vec3d& a, int samples) {
+    for (int k = 0; k < samples; ++k) {
+        f.add(kTurned, forceFor(kTurned, a), Vec3d(2.0, 0.5, -1.0), kDt);
+    }
+}
+
+TEST(FootInertial, IsNotValidBeforeTheFootWasFirstStill) {
+    FootInertial f;
+    move(f, Vec3d(1, 0, 0), 10);
+    EXPECT_FALSE(f.valid());
+    holdStill(f, 2);
+    EXPECT_TRUE(f.still());
+    EXPECT_TRUE(f.valid());
+    EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
+}
+
+TEST(FootInertial, IntegratesTheWorldAccelerationFromTheLatestStillInstant) {
+    FootInertial f;
+    holdStill(f, 10);
+    const Vec3d a(1.5, -0.8, 0.3);
+    move(f, a, 30);
+    EXPECT_FALSE(f.still());
+    ASSERT_TRUE(f.valid());
+    // Trapezoids: the first interval ramps from the still sample's zero to a.
+    const Vec3d expected = a * (29.5 * kDt);
+    EXPECT_LT((f.velocityEnuMps() - expected).norm(), 1e-9) << f.velocityEnuMps().transpose();
+    // The rate comes out in ENU.
+    EXPECT_LT((f.rateEnuRadS() - kTurned * Vec3d(2.0, 0.5, -1.0)).norm(), 1e-12);
+    // Still again: a zero-velocity update.
+    holdStill(f, 2);
+    EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
+}
+
+TEST(FootInertial, OneQuietSampleInMotionIsNotAStillInstant) {
+    // A swinging foot passes through low rates and about 1 g at its turning points; a single
+    // such sample (10 ms at 100 Hz) must not zero the velocity.
+    FootInertial f;
+    holdStill(f, 5);
+    move(f, Vec3d(1, 0, 0), 20);
+    const Vec3d before = f.velocityEnuMps();
+    holdStill(f, 1);
+    EXPECT_FALSE(f.still());
+    EXPECT_GT(f.velocityEnuMps().x(), before.x());  // integrated on: the ramp down to zero
+    holdStill(f, 1);
+    EXPECT_TRUE(f.still());
+}
+
+TEST(FootInertial, AFootLongOffTheFloorIsNotTrusted) {
+    FootInertialOptions o;
+    FootInertial f(o);
+    holdStill(f, 5);
+    const int within = static_cast<int>(o.maxSpanS / kDt) - 1;
+    move(f, Vec3d(0, 1, 0), within);
+    EXPECT_TRUE(f.valid());
+    move(f, Vec3d(0, 1, 0), 3);
+    EXPECT_FALSE(f.valid());
+    holdStill(f, 2);
+    EXPECT_TRUE(f.valid());
+}
+
+TEST(FootInertial, AResetForgetsTheMotion) {
+    FootInertial f;
+    holdStill(f, 5);
+    move(f, Vec3d(1, 0, 0), 5);
+    f.reset();
+    EXPECT_FALSE(f.valid());
+    EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
+}
+
+}  // namespace
+}  // namespace caphub::body
