@@ -50,9 +50,11 @@ BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWr
         sensorOfSegment_[seg] = static_cast<int>(i);
         nominal_[seg] = board.sensors[i].mounting;
     }
-    pelvisSensor_ = sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::Pelvis))];
-    footSensor_ = {sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::LHindfoot))],
-                   sensorOfSegment_[static_cast<std::size_t>(body::idx(body::Segment::RHindfoot))]};
+    auto sensorOf = [this](body::Segment s) {
+        return sensorOfSegment_[static_cast<std::size_t>(body::idx(s))];
+    };
+    pelvisSensor_ = sensorOf(body::Segment::Pelvis);
+    footSensor_ = {sensorOf(body::Segment::LHindfoot), sensorOf(body::Segment::RHindfoot)};
     footInertial_ = {body::FootInertial(options_.footInertialOptions),
                      body::FootInertial(options_.footInertialOptions)};
     if (!options_.calibrate) {

@@ -32,7 +32,7 @@ public:
     void reset();
 
     // Integrated from a still instant no longer than maxSpanS ago.
-    bool valid() const { return started_ && (still_ || sinceStillS_ <= options_.maxSpanS); }
+    bool valid() const { return started_ && sinceStillS_ <= options_.maxSpanS; }
     bool still() const { return still_; }
     // The sensor's velocity (m/s) and rate (rad/s) in ENU at the latest sample: with them, the
     // velocity of any point of the rigid foot.
