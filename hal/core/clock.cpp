@@ -1,5 +1,6 @@
 #include "hal/core/clock.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <ctime>
 
@@ -49,8 +50,17 @@ void SimulatedClock::sleepUntil(Timestamp t) {
         advanceTo(t);
         return;
     }
+    // In real-time slices, so that interrupt() is seen promptly: at a slow rate one simulated
+    // millisecond can be seconds of real time.
     const double simAhead = toSeconds(t - start_);
-    real_.sleepUntil(realStart_ + durationFromSeconds(simAhead / rate_));
+    const Timestamp realTarget = realStart_ + durationFromSeconds(simAhead / rate_);
+    while (!interrupted_.load(std::memory_order_acquire)) {
+        const Timestamp realNow = real_.now();
+        if (realNow >= realTarget) {
+            return;
+        }
+        real_.sleepUntil(std::min(realTarget, realNow + kInterruptLatency));
+    }
 }
 
 void SimulatedClock::advanceTo(Timestamp t) {

@@ -12,8 +12,14 @@ public:
     virtual ~Clock() = default;
 
     virtual Timestamp now() const = 0;
-    // Blocks until now() >= t (returns at once if t is past).
+    // Blocks until now() >= t (returns at once if t is past), or until interrupt().
     virtual void sleepUntil(Timestamp t) = 0;
+    // The threads that sleep on this clock are stopping: every sleepUntil in progress returns
+    // within kInterruptLatency of real time, and later ones at once, whatever their target (so
+    // now() may still be before it). For clocks whose sleeps can be long in real time (a
+    // simulated clock paced far below real time); a MonotonicClock's callers bound their own.
+    virtual void interrupt() {}
+    static constexpr Duration kInterruptLatency = std::chrono::milliseconds(20);
 };
 
 // CLOCK_MONOTONIC, the clock the kernel stamps GPIO edge events with.
@@ -40,6 +46,7 @@ public:
 
     Timestamp now() const override;
     void sleepUntil(Timestamp t) override;
+    void interrupt() override { interrupted_.store(true, std::memory_order_release); }
 
     // Stepped mode only: moves time forward; a target in the past leaves it unchanged.
     void advanceTo(Timestamp t);
@@ -52,6 +59,7 @@ private:
     std::atomic<std::int64_t> nowNs_;  // stepped mode
     Timestamp start_{};                // paced mode: simulated time at realStart_
     Timestamp realStart_{};
+    std::atomic<bool> interrupted_{false};
 };
 
 }  // namespace caphub

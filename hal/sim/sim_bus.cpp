@@ -122,6 +122,9 @@ int SimDataReadyLine::waitEdge(Duration timeout, Timestamp& edgeTime) {
         return -ETIMEDOUT;
     }
     clock_.sleepUntil(*next);
+    if (clock_.now() < *next) {
+        return -ETIMEDOUT;  // the clock was interrupted: the capture is stopping
+    }
     edgeTime = *next;
     last_ = *next;
     return 0;
