@@ -59,6 +59,16 @@ int printRecording(const std::string& path) {
     std::map<int, std::uint64_t> perSensor;
     std::map<int, std::pair<Timestamp, Timestamp>> sensorSpan;
     std::vector<std::string> events;
+    // Per joint (segment) the spans of poses in which its sensor was out, in capture time.
+    struct Gap {
+        Timestamp from{};
+        Timestamp to{};
+        std::uint64_t poses = 0;
+    };
+    std::map<int, std::vector<Gap>> gaps;
+    std::uint32_t lastMask = 0;
+    Eigen::Vector3f rootM;
+    std::vector<Eigen::Quaternionf> joints;
     Timestamp first = Timestamp::max();
     Timestamp last = Timestamp::min();
     RecordView v;
@@ -75,6 +85,26 @@ int printRecording(const std::string& path) {
             if (!fresh) {
                 it->second.second = v.t;
             }
+        }
+        std::uint32_t notMeasured = 0;
+        if (decodePose(v, rootM, joints, &notMeasured)) {
+            for (int j = 0; j < 32; ++j) {
+                if ((notMeasured >> j & 1u) == 0) {
+                    continue;
+                }
+                auto& spans = gaps[j];
+                if ((lastMask >> j & 1u) == 0 || spans.empty()) {
+                    spans.push_back(Gap{v.t, v.t, 0});
+                }
+                spans.back().to = v.t;
+                ++spans.back().poses;
+            }
+            lastMask = notMeasured;
+        }
+        if (v.type == cap::RecordType::Marker && events.size() < 50) {
+            events.push_back(fmt::format(
+                "  {:10.3f} s  marker: {}", toSeconds(v.t - first),
+                std::string(reinterpret_cast<const char*>(v.payload.data()), v.payload.size())));
         }
         cap::EventKind kind{};
         int error = 0;
@@ -125,6 +155,18 @@ int printRecording(const std::string& path) {
         fmt::print("\nevents:\n");
         for (const auto& e : events) {
             fmt::print("{}\n", e);
+        }
+    }
+    fmt::print("\nsegments not measured (their sensor out; held in the poses): {}",
+               gaps.empty() ? "none\n" : "\n");
+    for (const auto& [j, spans] : gaps) {
+        const std::string name =
+            j < board::kSegmentCount
+                ? std::string(board::segmentName(static_cast<board::Segment>(j)))
+                : fmt::format("joint {}", j);
+        for (const auto& g : spans) {
+            fmt::print("  {:<12} {:10.3f} - {:.3f} s ({} poses)\n", name, toSeconds(g.from - first),
+                       toSeconds(g.to - first), g.poses);
         }
     }
     fmt::print("\ndamage: {}", r.damage().empty() ? "none" : "");

@@ -38,6 +38,14 @@ std::string_view eventName(EventKind kind) {
             return "calibrated";
         case EventKind::RecordingStopped:
             return "recording stopped";
+        case EventKind::TakeStarted:
+            return "take started";
+        case EventKind::TakeStopped:
+            return "take stopped";
+        case EventKind::HeadingReset:
+            return "heading reset";
+        case EventKind::Command:
+            return "command";
     }
     return "unknown";
 }

@@ -11,7 +11,9 @@
 namespace caphub::firmware::cap {
 
 inline constexpr std::array<std::uint8_t, 8> kMagic = {0x89, 'C', 'A', 'P', 0x0D, 0x0A, 0x1A, 0x0A};
-inline constexpr std::uint16_t kVersion = 1;
+// Version 2 adds the pose's flags and its mask of joints not measured; readers read 1 and 2.
+inline constexpr std::uint16_t kVersion = 2;
+inline constexpr std::uint16_t kOldestReadableVersion = 1;
 inline constexpr std::size_t kHeaderFixedBytes = 20;  // magic, version, flags, length, CRC
 
 inline constexpr std::array<std::uint8_t, 4> kSync = {0xC4, 0x7A, 0x2B, 0x91};
@@ -38,6 +40,10 @@ enum class EventKind : std::uint8_t {
     LineSilent = 4,
     Calibrated = 5,
     RecordingStopped = 6,  // e.g. the disk is full
+    TakeStarted = 7,       // the take this file holds began (text: its name)
+    TakeStopped = 8,       // the take ended as asked (the file's last record)
+    HeadingReset = 9,      // the body's heading was reset (text: what was done)
+    Command = 10,          // a command reached the running capture (text: which, and its result)
 };
 
 std::string_view eventName(EventKind kind);
@@ -89,7 +95,9 @@ inline float getF32(const std::uint8_t* p) {
 // Payload sizes.
 inline constexpr std::size_t kRawSampleBytes = 44;
 inline constexpr std::size_t kOrientationBytes = 20;
-inline constexpr std::size_t kPoseFixedBytes = 16;  // joint count, reserved, root position
+inline constexpr std::size_t kPoseFixedBytes = 16;  // joint count, flags, root position
+// Pose flags: a u32 mask of the joints not measured in this pose follows the joints.
+inline constexpr std::uint16_t kPoseHasNotMeasured = 1;
 inline constexpr std::size_t kEventFixedBytes = 8;
 
 }  // namespace caphub::firmware::cap

@@ -42,9 +42,10 @@ Result<std::unique_ptr<RecordingReader>> RecordingReader::openStream(std::FILE* 
     }
     const std::uint8_t* h = r->buf_.data();
     r->version_ = get16(h + 8);
-    if (r->version_ != kVersion) {
+    if (r->version_ < kOldestReadableVersion || r->version_ > kVersion) {
         return Error{EINVAL, "recording '" + path + "' has format version " +
-                                 std::to_string(r->version_) + "; this caphub reads version " +
+                                 std::to_string(r->version_) + "; this caphub reads versions " +
+                                 std::to_string(kOldestReadableVersion) + " to " +
                                  std::to_string(kVersion)};
     }
     const std::uint32_t metaLen = get32(h + 12);
@@ -205,13 +206,16 @@ bool decodeOrientation(const RecordView& r, int& sensor, Eigen::Quaternionf& q) 
 }
 
 bool decodePose(const RecordView& r, Eigen::Vector3f& rootM,
-                std::vector<Eigen::Quaternionf>& joints) {
+                std::vector<Eigen::Quaternionf>& joints, std::uint32_t* notMeasured) {
     if (r.type != RecordType::Pose || r.payload.size() < kPoseFixedBytes) {
         return false;
     }
     const std::uint8_t* p = r.payload.data();
     const std::size_t n = get16(p);
-    if (r.payload.size() != kPoseFixedBytes + 16 * n) {
+    const std::uint16_t flags = get16(p + 2);
+    const bool hasMask = (flags & kPoseHasNotMeasured) != 0;
+    if ((flags & ~kPoseHasNotMeasured) != 0 ||
+        r.payload.size() != kPoseFixedBytes + 16 * n + (hasMask ? 4 : 0)) {
         return false;
     }
     rootM = Eigen::Vector3f(getF32(p + 4), getF32(p + 8), getF32(p + 12));
@@ -219,6 +223,9 @@ bool decodePose(const RecordView& r, Eigen::Vector3f& rootM,
     const std::uint8_t* q = p + kPoseFixedBytes;
     for (std::size_t i = 0; i < n; ++i, q += 16) {
         joints[i] = Eigen::Quaternionf(getF32(q), getF32(q + 4), getF32(q + 8), getF32(q + 12));
+    }
+    if (notMeasured != nullptr) {
+        *notMeasured = hasMask ? get32(q) : 0;
     }
     return true;
 }

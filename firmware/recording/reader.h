@@ -79,8 +79,10 @@ private:
 // Payload decoders: false when the payload does not have the type's layout.
 bool decodeRawSample(const RecordView& r, int& sensor, hal::ImuSample& out);
 bool decodeOrientation(const RecordView& r, int& sensor, Eigen::Quaternionf& q);
+// notMeasured (optional): bit j set when joint j's segment had no sensor reading in this pose
+// (its sensor out: the rotation is held from before); 0 for poses of version-1 files.
 bool decodePose(const RecordView& r, Eigen::Vector3f& rootM,
-                std::vector<Eigen::Quaternionf>& joints);
+                std::vector<Eigen::Quaternionf>& joints, std::uint32_t* notMeasured = nullptr);
 bool decodeEvent(const RecordView& r, cap::EventKind& kind, int& sensor, int& error,
                  std::string& text);
 

@@ -271,13 +271,14 @@ int RecordingWriter::writeOrientation(int sensor, Timestamp t, const Eigen::Quat
 }
 
 int RecordingWriter::writePose(Timestamp t, const Eigen::Vector3f& rootM,
-                               std::span<const Eigen::Quaternionf> joints) {
-    std::uint8_t* p = begin(RecordType::Pose, t, kPoseFixedBytes + 16 * joints.size());
+                               std::span<const Eigen::Quaternionf> joints,
+                               std::uint32_t notMeasured) {
+    std::uint8_t* p = begin(RecordType::Pose, t, kPoseFixedBytes + 16 * joints.size() + 4);
     if (p == nullptr) {
         return refusal();
     }
     put16(p, static_cast<std::uint16_t>(joints.size()));
-    put16(p + 2, 0);
+    put16(p + 2, kPoseHasNotMeasured);
     for (int i = 0; i < 3; ++i) {
         putF32(p + 4 + 4 * i, rootM[i]);
     }
@@ -289,6 +290,7 @@ int RecordingWriter::writePose(Timestamp t, const Eigen::Vector3f& rootM,
         putF32(q + 12, j.z());
         q += 16;
     }
+    put32(q, notMeasured);
     return end();
 }
 

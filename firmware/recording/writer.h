@@ -54,8 +54,10 @@ public:
 
     [[nodiscard]] int writeRawSample(int sensor, const hal::ImuSample& s);
     [[nodiscard]] int writeOrientation(int sensor, Timestamp t, const Eigen::Quaternionf& q);
+    // notMeasured: bit j set when joint j's segment had no sensor reading (at most 32 joints).
     [[nodiscard]] int writePose(Timestamp t, const Eigen::Vector3f& rootM,
-                                std::span<const Eigen::Quaternionf> jointRotations);
+                                std::span<const Eigen::Quaternionf> jointRotations,
+                                std::uint32_t notMeasured = 0);
     [[nodiscard]] int writeEvent(Timestamp t, cap::EventKind kind, int sensor, int error,
                                  std::string_view text);
     [[nodiscard]] int writeMetadata(Timestamp t, std::string_view toml);

@@ -16,6 +16,7 @@
 
 #include "board/sim/bvh.h"
 #include "firmware/recording/reader.h"
+#include "firmware/recording/writer.h"
 #include "fusion/body/skeleton.h"
 #include "hal/core/quaternion.h"
 #include "tests/firmware/cli_run.h"
@@ -151,11 +152,13 @@ TEST(ExportCli, DamagedRecordingExportsAndSaysHowMuchWasSkipped) {
         s << in.rdbuf();
         bytes = s.str();
     }
-    bytes[bytes.size() - 100 * 376 + 50] ^= 0x20;  // inside pose record 200 (of 300)
+    // A pose record of 21 joints: 20 + 16 + 21 x 16 + 4 (the not-measured mask) + 4 bytes.
+    constexpr std::size_t kPoseRecord = 380;
+    bytes[bytes.size() - 100 * kPoseRecord + 50] ^= 0x20;  // inside pose record 200 (of 300)
     std::ofstream(rec, std::ios::binary | std::ios::trunc) << bytes;
     const CliRun r = caphub("export " + rec + " --format csv -o " + temp("damaged.csv"));
     EXPECT_EQ(r.exitCode, 0) << r.output;
-    EXPECT_THAT(r.output, HasSubstr("skipped 376 bytes in 1 damaged range(s)"));
+    EXPECT_THAT(r.output, HasSubstr("skipped 380 bytes in 1 damaged range(s)"));
     EXPECT_THAT(r.output, HasSubstr("299 good pose records"));
     EXPECT_THAT(r.output, HasSubstr("300 frames"));
 }
@@ -202,6 +205,54 @@ TEST(ExportCli, ProgressIsShownOnATerminalOnly) {
                              " --format csv -o " + out + "' /dev/null");
     EXPECT_EQ(tty.exitCode, 0) << tty.output;
     EXPECT_THAT(tty.output, HasSubstr("writing  100%"));
+}
+
+}  // namespace
+
+namespace {
+
+// `caphub info` lists the spans in which a segment's sensor was out (the poses' not-measured
+// masks), per segment, in the recording's time.
+TEST(InfoCli, ListsTheSpansInWhichASegmentWasNotMeasured) {
+    const std::string rec = temp("gaps.cap");
+    std::filesystem::remove(rec);
+    {
+        auto w = caphub::firmware::RecordingWriter::create(rec, "");
+        ASSERT_TRUE(w.ok()) << w.error().message;
+        const std::vector<Eigen::Quaternionf> joints(21, Eigen::Quaternionf::Identity());
+        const std::uint32_t pelvis = 1u << 0;
+        const std::uint32_t forearm = 1u << 12;
+        for (int k = 0; k <= 300; ++k) {  // 5 s at 60 Hz
+            std::uint32_t mask = 0;
+            if (k >= 60 && k < 120) {
+                mask |= forearm;  // 1.000 - 1.983 s
+            }
+            if (k >= 180 && k < 190) {
+                mask |= forearm | pelvis;  // 3.000 - 3.150 s
+            }
+            ASSERT_EQ(
+                (*w)->writePose(caphub::timestampFromNs(1'000'000'000LL + k * 1'000'000'000LL / 60),
+                                {0, 1, 0}, joints, mask),
+                0);
+        }
+        ASSERT_EQ((*w)->close(), 0);
+    }
+    const CliRun info = caphub("info " + rec);
+    ASSERT_EQ(info.exitCode, 0) << info.output;
+    const std::string forearmName(
+        caphub::board::segmentName(static_cast<caphub::board::Segment>(12)));
+    const std::string pelvisName(
+        caphub::board::segmentName(static_cast<caphub::board::Segment>(0)));
+    EXPECT_THAT(info.output, HasSubstr("segments not measured"));
+    EXPECT_THAT(info.output, HasSubstr(forearmName));
+    EXPECT_THAT(info.output, HasSubstr("1.000 - 1.983 s (60 poses)"));
+    EXPECT_THAT(info.output, HasSubstr("3.000 - 3.150 s (10 poses)"));
+    EXPECT_THAT(info.output, HasSubstr(pelvisName));
+
+    // A recording without gaps says so.
+    const CliRun walkInfo = caphub("info " + walk());
+    EXPECT_THAT(walkInfo.output, HasSubstr("segments not measured (their sensor out; held in the "
+                                           "poses): none"));
 }
 
 }  // namespace

@@ -93,6 +93,54 @@ TEST(Crc32c, MatchesTheStandardCheckValue) {
     EXPECT_EQ(crc32c(std::span(p + 4, 5), crc32c(std::span(p, 4))), 0xE3069283u);
 }
 
+TEST(Recording, APoseCarriesWhichJointsWereNotMeasured) {
+    const std::string path = tempPath("not-measured");
+    const std::vector<Eigen::Quaternionf> joints(21, Eigen::Quaternionf::Identity());
+    {
+        auto w = RecordingWriter::create(path, "");
+        ASSERT_TRUE(w.ok()) << w.error().message;
+        ASSERT_EQ((*w)->writePose(timestampFromNs(1), {0, 1, 0}, joints), 0);
+        ASSERT_EQ((*w)->writePose(timestampFromNs(2), {0, 1, 0}, joints, (1u << 5) | (1u << 20)),
+                  0);
+        ASSERT_EQ((*w)->close(), 0);
+    }
+    auto r = RecordingReader::open(path);
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ((*r)->version(), cap::kVersion);
+    RecordView v;
+    Eigen::Vector3f root;
+    std::vector<Eigen::Quaternionf> got;
+    std::uint32_t mask = 99;
+    ASSERT_EQ((*r)->next(v), 1);
+    ASSERT_TRUE(decodePose(v, root, got, &mask));
+    EXPECT_EQ(mask, 0u);
+    ASSERT_EQ((*r)->next(v), 1);
+    ASSERT_TRUE(decodePose(v, root, got, &mask));
+    EXPECT_EQ(mask, (1u << 5) | (1u << 20));
+    EXPECT_EQ(got.size(), 21u);
+}
+
+TEST(Recording, AVersionOnePoseReadsAsEveryJointMeasured) {
+    // The version-1 layout: flags 0, no mask after the joints.
+    std::vector<std::uint8_t> payload(cap::kPoseFixedBytes + 16 * 2, 0);
+    cap::put16(payload.data(), 2);
+    cap::putF32(payload.data() + 4, 1.5f);
+    RecordView v;
+    v.type = cap::RecordType::Pose;
+    v.payload = payload;
+    Eigen::Vector3f root;
+    std::vector<Eigen::Quaternionf> joints;
+    std::uint32_t mask = 99;
+    ASSERT_TRUE(decodePose(v, root, joints, &mask));
+    EXPECT_EQ(mask, 0u);
+    EXPECT_EQ(root.x(), 1.5f);
+    // A flag this reader does not know, or a length that does not match the flags: malformed.
+    cap::put16(payload.data() + 2, 2);
+    EXPECT_FALSE(decodePose(v, root, joints, &mask));
+    cap::put16(payload.data() + 2, cap::kPoseHasNotMeasured);
+    EXPECT_FALSE(decodePose(v, root, joints, &mask));
+}
+
 TEST(Recording, RoundTripsEveryRecordType) {
     const std::string path = tempPath("roundtrip");
     {
