@@ -18,12 +18,7 @@
 #include "firmware/cli/info.h"
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/evaluation.h"
-#include "firmware/runtime/body_stage.h"
-#include "firmware/runtime/capture.h"
-#include "firmware/runtime/fusion_stage.h"
-#include "firmware/runtime/preview_stage.h"
-#include "firmware/runtime/recorder_stage.h"
-#include "firmware/runtime/status_stage.h"
+#include "firmware/runtime/hub.h"
 #include "hal/core/log.h"
 #include "render/sinks.h"
 
@@ -34,8 +29,12 @@ namespace {
 namespace fs = std::filesystem;
 
 std::atomic<Capture*> gCapture{nullptr};
+std::atomic<bool> gStopSignalled{false};
 
+// SIGINT/SIGTERM from the moment the recording is created: the capture stops cleanly (the
+// recording stays complete), also when the signal comes before the capture has started.
 extern "C" void onStopSignal(int) {
+    gStopSignalled.store(true);
     if (Capture* c = gCapture.load()) {
         c->requestStop();
     }
@@ -201,13 +200,16 @@ int run(const RunOptions& o) {
         return kExitRuntime;
     }
 
-    Capture capture(*suit, *clock);
-    ThreadPolicy threads = ThreadPolicy::fromBoard(b.runtime);
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
+    HubOptions ho;
+    ho.calibrations = std::move(calibrations);
+    ho.body = bodyOptions;
+    ho.threads = ThreadPolicy::fromBoard(b.runtime);
     if (o.realtime >= 0) {
-        threads.realtimePriority = o.realtime;
+        ho.threads.realtimePriority = o.realtime;
     }
-    capture.setThreadPolicy(threads);
-    std::unique_ptr<RecorderStage> recorder;
+    ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
     fs::path recordingPath;
     if (!o.noRecord) {
         const fs::path dir =
@@ -226,27 +228,17 @@ int run(const RunOptions& o) {
         std::ifstream in(b.path);
         std::stringstream text;
         text << in.rdbuf();
-        WriterOptions wo;
-        wo.syncInterval = std::chrono::milliseconds(o.syncMs);
+        ho.writer.syncInterval = std::chrono::milliseconds(o.syncMs);
         auto writer = RecordingWriter::create(
             recordingPath.string(),
-            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText), wo);
+            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText),
+            ho.writer);
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
             return kExitRuntime;
         }
-        recorder = std::make_unique<RecorderStage>(std::move(*writer));
-        capture.addStage(*recorder);
+        ho.recordFromStart = std::move(*writer);
     }
-    FusionStage fusionStage(b, recorder ? &recorder->writer() : nullptr, calibrations);
-    capture.addStage(fusionStage);
-    BodyStage bodyStage(b, fusionStage, recorder ? &recorder->writer() : nullptr, *clock,
-                        bodyOptions);
-    capture.addStage(bodyStage);
-    StatusStage status(b, capture, recorder.get(),
-                       o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile), *clock);
-    capture.addStage(status);
-    std::unique_ptr<PreviewStage> preview;
     if (auto sinks = previewSinks(o, b); sinks.liveCount() > 0 || !sinks.failures().empty()) {
         for (const auto& f : sinks.failures()) {
             fmt::print(stderr, "caphub run: preview {}\n", f);
@@ -256,14 +248,13 @@ int run(const RunOptions& o) {
             if (!skin) {
                 fmt::print(stderr, "caphub run: preview off: {}\n", skin.error().message);
             } else {
-                PreviewStage::Options po;
-                po.fps = o.previewFps;
-                preview = std::make_unique<PreviewStage>(b, bodyStage, std::move(*skin),
-                                                         std::move(sinks), po);
-                capture.addStage(*preview);
+                ho.previewSkin = std::move(*skin);
+                ho.previewSinks = std::move(sinks);
+                ho.preview.fps = o.previewFps;
             }
         }
     }
+    Hub hub(b, *clock, *suit, std::move(ho));
     if (bodyOptions.calibrate && !sim) {
         fmt::print("stand still in the {} for the first {:.0f} s\n",
                    bodyOptions.calibrate == body::ReferencePoseKind::T ? "T-pose" : "N-pose",
@@ -273,11 +264,12 @@ int run(const RunOptions& o) {
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
                b.buses.size(), b.name, sim ? "virtual suit, motion " + motionText : "hub buses",
                o.durationS > 0 ? fmt::format(", {:g} s", o.durationS) : ", Ctrl-C to stop");
-    gCapture.store(&capture);
-    std::signal(SIGINT, onStopSignal);
-    std::signal(SIGTERM, onStopSignal);
-    capture.start(durationFromSeconds(o.durationS));
-    const CaptureStats stats = capture.wait();
+    gCapture.store(&hub.capture());
+    if (gStopSignalled.load()) {
+        hub.requestStop();  // signalled while the hub was being built: stop at once
+    }
+    hub.start(durationFromSeconds(o.durationS));
+    const CaptureStats stats = hub.wait();
     std::signal(SIGINT, SIG_DFL);
     std::signal(SIGTERM, SIG_DFL);
     gCapture.store(nullptr);
@@ -285,7 +277,7 @@ int run(const RunOptions& o) {
     const double seconds = toSeconds(stats.elapsed);
     fmt::print("\n{:<12} {:>9} {:>9} {:>7} {:>7}\n", "sensor", "samples", "rate Hz", "lost",
                "errors");
-    for (const auto& w : capture.workers()) {
+    for (const auto& w : hub.capture().workers()) {
         for (std::size_t i = 0; i < w->sensorCount(); ++i) {
             const auto& c = w->counters(i);
             const auto& sensor =
@@ -295,26 +287,30 @@ int run(const RunOptions& o) {
                        c.lost.load(), c.readErrors.load());
         }
     }
-    fmt::print("\n{} orientation updates", fusionStage.updates());
-    printBody(bodyStage, b, placementOf);
-    if (preview) {
+    fmt::print("\n{} orientation updates", hub.fusion().updates());
+    printBody(hub.body(), b, placementOf);
+    if (const PreviewStage* preview = hub.preview()) {
         const std::string err = preview->error();
         fmt::print("\npreview: {} frames rendered, {} skipped{}", preview->framesRendered(),
                    preview->framesSkipped(), err.empty() ? "" : " - " + err);
     }
     fmt::print(
-        "\n{} samples in {:.2f} s, {} dropped, {} sensor losses; latency data-ready -> "
+        "\n{} samples in {:.2f} s, {} dropped{}, {} sensor losses; latency data-ready -> "
         "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",
-        stats.samples, seconds, stats.dropped, stats.lost, toSeconds(stats.latencyP50) * 1e3,
-        toSeconds(stats.latencyP99) * 1e3, toSeconds(stats.latencyMax) * 1e3);
-    if (recorder) {
+        stats.samples, seconds, stats.dropped,
+        stats.abandoned > 0
+            ? fmt::format(" ({} more left unprocessed at the end: the pipeline was too far behind)",
+                          stats.abandoned)
+            : std::string(),
+        stats.lost, toSeconds(stats.latencyP50) * 1e3, toSeconds(stats.latencyP99) * 1e3,
+        toSeconds(stats.latencyMax) * 1e3);
+    if (const RecordingWriter* w = hub.recorder().current(); w != nullptr) {
         std::error_code ec;
         const auto size = fs::file_size(recordingPath, ec);
-        fmt::print(
-            "recording: {} ({} records, {} bytes){}\n", recordingPath.string(),
-            recorder->writer().stats().records, ec ? 0 : size,
-            recorder->error() != 0 ? " - stopped early: " + errnoText(recorder->error()) : "");
-        if (recorder->error() != 0) {
+        fmt::print("recording: {} ({} records, {} bytes){}\n", recordingPath.string(),
+                   w->stats().records, ec ? 0 : size,
+                   w->error() != 0 ? " - stopped early: " + errnoText(w->error()) : "");
+        if (w->error() != 0) {
             return kExitRuntime;
         }
     }

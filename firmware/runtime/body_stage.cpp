@@ -29,11 +29,11 @@ body::SegmentMask maskOf(const board::Board& board) {
 
 }  // namespace
 
-BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordingWriter* writer,
+BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordSink* records,
                      Clock& clock, const Options& options)
     : board_(board),
       fusion_(fusion),
-      writer_(writer),
+      records_(records),
       clock_(clock),
       options_(options),
       period_(periodFromHz(options.rateHz)),
@@ -136,8 +136,9 @@ void BodyStage::onSample(const SensorSample& s) {
 }
 
 void BodyStage::onEvent(const RuntimeEvent& e) {
-    // A lost sensor's filter restarts: its held orientations are stale.
-    if (e.kind == RuntimeEvent::Kind::SensorLost && e.sensor >= 0 &&
+    // A sensor out (lost, silent, resetting): its filter restarts, its held orientations are
+    // stale.
+    if (e.kind != RuntimeEvent::Kind::SensorOnline && e.sensor >= 0 &&
         static_cast<std::size_t>(e.sensor) < held_.size()) {
         held_[static_cast<std::size_t>(e.sensor)].count = 0;
         for (std::size_t k = 0; k < 2; ++k) {
@@ -173,13 +174,13 @@ void BodyStage::calibrate(Timestamp t) {
     rootVelocityValid_ = false;
     calibrated_ = true;
     nextFrame_ = t;
-    if (writer_ != nullptr && writer_->error() == 0) {
+    if (records_ != nullptr) {
         const std::string text = body::toText(calibration_);
-        (void)writer_->writeEvent(
+        records_->event(
             t, cap::EventKind::Calibrated, -1, 0,
             fmt::format("body calibration: {} pose, {} segments",
                         body::toString(calibration_.method), std::popcount(calibration_.mask)));
-        (void)writer_->writeMetadata(t, "[body_calibration]\ntext = " + tomlString(text) + "\n");
+        records_->metadata(t, "[body_calibration]\ntext = " + tomlString(text) + "\n");
     }
 }
 
@@ -223,11 +224,14 @@ void BodyStage::solveFrame(Timestamp t, Timestamp newestSample) {
     if (options_.aidFilters) {
         feedBackAcceleration(dtS);
     }
-    if (writer_ != nullptr && writer_->error() == 0) {
+    if (records_ != nullptr) {
         for (std::size_t j = 0; j < joints_.size(); ++j) {
             joints_[j] = pose.qLocal[j].cast<float>();
         }
-        (void)writer_->writePose(t, pose.positionM[0].cast<float>(), joints_);
+        // Segments whose sensor gave nothing for this pose (out: lost, silent, resetting) are
+        // held by the solver, and flagged as such in the record.
+        records_->pose(t, pose.positionM[0].cast<float>(), joints_,
+                       static_cast<std::uint32_t>(mask_ & ~frame.mask));
     }
     latency_.add(clock_.now() - newestSample);
 }

@@ -8,10 +8,10 @@
 #include <vector>
 
 #include "board/board.h"
-#include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/latency_window.h"
+#include "firmware/runtime/record_sink.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
 #include "fusion/body/foot_inertial.h"
@@ -41,9 +41,9 @@ public:
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations,
-    // and hands it back the body's acceleration: FusionStage::setBodyAcceleration); writer may
-    // be null.
-    BodyStage(const board::Board& board, FusionStage& fusion, RecordingWriter* writer, Clock& clock,
+    // and hands it back the body's acceleration: FusionStage::setBodyAcceleration); records
+    // may be null.
+    BodyStage(const board::Board& board, FusionStage& fusion, RecordSink* records, Clock& clock,
               const Options& options);
 
     void onSample(const SensorSample& s) override;
@@ -74,7 +74,7 @@ private:
 
     const board::Board& board_;
     FusionStage& fusion_;
-    RecordingWriter* writer_;
+    RecordSink* records_;
     Clock& clock_;
     Options options_;
     Duration period_;

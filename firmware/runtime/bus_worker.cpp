@@ -22,6 +22,7 @@ BusWorker::~BusWorker() {
 void BusWorker::emit(RuntimeEvent::Kind kind, std::size_t i, Timestamp t, int error) {
     // Events are rare; a full event ring means nobody reads them, and the counters still tell.
     (void)events_.push(RuntimeEvent{kind, hw_.sensors[i].sensor, t, error});
+    produced_ = true;
 }
 
 void BusWorker::goOffline(std::size_t i, Timestamp now, int error, RuntimeEvent::Kind kind) {
@@ -65,6 +66,8 @@ void BusWorker::handleEdge(std::size_t i, Timestamp edge) {
     c.samples.fetch_add(1, std::memory_order_relaxed);
     if (!samples_.push(out)) {
         c.dropped.fetch_add(1, std::memory_order_relaxed);
+    } else {
+        produced_ = true;
     }
 }
 
@@ -79,8 +82,11 @@ void BusWorker::runOnce() {
             if (r == 0) {
                 // Edges from before the configuration was complete carry samples taken with the
                 // old settings (full scale, rate): drop them, as the driver's FIFO reset would.
+                // Those from before now only: a line whose edges come faster than they can be
+                // read (a virtual suit paced far beyond the machine) would never run dry.
                 Timestamp stale{};
-                while (s.line->readEdge(stale) == 0) {
+                for (int k = 0; k < kMaxStaleEdges && s.line->readEdge(stale) == 0 && stale <= now;
+                     ++k) {
                 }
                 st.wasOnline = true;
                 st.lastEdge = now;
@@ -112,9 +118,18 @@ void BusWorker::runOnce() {
     for (int k = 0; k < n; ++k) {
         const auto i = static_cast<std::size_t>(ready[static_cast<std::size_t>(k)]);
         Timestamp edge{};
-        // Take every pending edge: a worker that fell behind catches up sample by sample.
-        while (hw_.sensors[i].line->readEdge(edge) == 0) {
+        // Take the pending edges: a worker that fell behind catches up sample by sample, a
+        // bounded number per pass (the chips keep the rest latched, or the line's queue drops
+        // the oldest, as the kernel's does).
+        for (int taken = 0; taken < kMaxEdgesPerPass && hw_.sensors[i].line->readEdge(edge) == 0;
+             ++taken) {
             handleEdge(i, edge);
+        }
+    }
+    if (produced_) {
+        produced_ = false;
+        if (wake_ != nullptr) {
+            wake_->notify();
         }
     }
 }
@@ -132,7 +147,11 @@ void BusWorker::start(const ThreadPolicy& policy) {
 }
 
 void BusWorker::stop() {
-    running_.store(false);
+    if (running_.exchange(false)) {
+        // A worker asleep on a simulated clock paced far below real time would sleep on for
+        // seconds (one sample period can be minutes at --speed 0.001).
+        clock_.interrupt();
+    }
     if (thread_.joinable()) {
         thread_.join();
     }

@@ -12,6 +12,7 @@
 #include "board/hardware.h"
 #include "firmware/runtime/spsc_ring.h"
 #include "firmware/runtime/thread_policy.h"
+#include "firmware/runtime/wake_signal.h"
 #include "hal/imu_sample.h"
 
 namespace caphub::firmware {
@@ -59,6 +60,17 @@ public:
     // those edges call for. Runs on the worker thread, or directly from a test.
     void runOnce();
 
+    // Woken after each pass that put samples or events into the rings (before start()).
+    void setWake(WakeSignal* wake) { wake_ = wake; }
+
+    // The most edges of one line taken in one pass: a worker behind its chips (a simulated suit
+    // paced faster than the machine can read it) still comes back to its other sensors and to
+    // stop(), instead of chasing edges that arrive faster than it reads them.
+    static constexpr int kMaxEdgesPerPass = 64;
+    // The most stale edges dropped when a sensor comes online (a kernel line queue holds 16; a
+    // simulated line 100 ms of them).
+    static constexpr int kMaxStaleEdges = 1024;
+
     // A thread that runs runOnce() until stop(), with the given scheduling.
     void start(const ThreadPolicy& policy = {});
     void stop();
@@ -89,6 +101,8 @@ private:
     std::vector<std::unique_ptr<SensorCounters>> counters_;
     SampleRing samples_;
     EventRing events_;
+    WakeSignal* wake_ = nullptr;
+    bool produced_ = false;  // this pass pushed a sample or an event
     std::atomic<bool> running_{false};
     std::thread thread_;
 };

@@ -2,12 +2,13 @@
 
 namespace caphub::firmware {
 
-FusionStage::FusionStage(const board::Board& board, RecordingWriter* writer,
-                         Calibrations calibrations)
+FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibrations calibrations)
     : latest_(board.sensors.size()),
       valid_(board.sensors.size(), false),
+      resetPending_(board.sensors.size(), false),
+      resets_(board.sensors.size(), 0),
       calibrations_(std::move(calibrations)),
-      writer_(writer) {
+      records_(records) {
     calibrations_.resize(board.sensors.size());
     for (const auto& s : board.sensors) {
         fusion::FilterParams p;
@@ -50,18 +51,48 @@ void FusionStage::onSample(const SensorSample& s) {
     now.specificForceMps2 = c.accMps2.cast<float>();
     now.rateRadS = c.gyrRadS.cast<float>();
     valid_[static_cast<std::size_t>(s.sensor)] = true;
+    resetPending_[static_cast<std::size_t>(s.sensor)] = false;
     ++updates_;
-    if (writer_ != nullptr && writer_->error() == 0) {
-        (void)writer_->writeOrientation(s.sensor, in.t, out);
+    if (records_ != nullptr) {
+        records_->orientation(s.sensor, in.t, out);
     }
 }
 
 void FusionStage::onEvent(const RuntimeEvent& e) {
-    // A sensor that was lost restarts from its reset state: its filter state is stale.
-    if (e.kind == RuntimeEvent::Kind::SensorLost && e.sensor >= 0 &&
-        static_cast<std::size_t>(e.sensor) < filters_.size()) {
-        valid_[static_cast<std::size_t>(e.sensor)] = false;
+    if (e.sensor < 0 || static_cast<std::size_t>(e.sensor) >= filters_.size()) {
+        return;
     }
+    const auto i = static_cast<std::size_t>(e.sensor);
+    switch (e.kind) {
+        case RuntimeEvent::Kind::SensorLost:
+        case RuntimeEvent::Kind::LineSilent:
+        case RuntimeEvent::Kind::SensorReset: {
+            // The sensor is out (or its chip lost its settings): it has no orientation until it
+            // is back, and its filter starts again from its first sample then, as at power-on.
+            // The gyroscope's bias estimate is the chip's, not the motion's: it is kept.
+            if (!valid_[i] && resetPending_[i]) {
+                return;  // already out
+            }
+            valid_[i] = false;
+            Filter& f = *filters_[i];
+            fusion::FilterState<fusion::FloatTypes> state;
+            state.bias = f.bias();
+            state.clipEvents = f.clipEvents();
+            f.setState(state);
+            resetPending_[i] = true;
+            ++resets_[i];
+            return;
+        }
+        case RuntimeEvent::Kind::SensorOnline:
+            return;
+    }
+}
+
+std::uint32_t FusionStage::resets(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= resets_.size()) {
+        return 0;
+    }
+    return resets_[static_cast<std::size_t>(sensor)];
 }
 
 void FusionStage::setBodyAcceleration(const Eigen::Vector3d& enuMps2) {

@@ -1,6 +1,9 @@
 // The pipeline stage that fuses: one orientation filter per sensor, fed each sample at the
 // sensor's own rates (the magnetometer only when its reading is fresh) after the sensor's
-// calibration, recording every sensor's orientation next to its raw samples.
+// calibration, recording every sensor's orientation next to its raw samples. A sensor that is
+// lost, whose data-ready line falls silent or whose chip resets has no orientation until it is
+// back, and its filter starts again from the first sample after (docs/runtime.md, "Sensor
+// lifecycle").
 #pragma once
 
 #include <memory>
@@ -8,8 +11,8 @@
 #include <vector>
 
 #include "board/board.h"
-#include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/record_sink.h"
 #include "fusion/calibration/sensor_calibration.h"
 #include "fusion/orientation_filter.h"
 
@@ -22,8 +25,8 @@ public:
     // Per board sensor, the calibration applied to its samples before its filter (none: raw).
     using Calibrations = std::vector<std::optional<fusion::SensorCalibration>>;
 
-    // writer may be null (no recording); calibrations may be empty.
-    FusionStage(const board::Board& board, RecordingWriter* writer, Calibrations calibrations = {});
+    // records may be null (no recording); calibrations may be empty.
+    FusionStage(const board::Board& board, RecordSink* records, Calibrations calibrations = {});
 
     void onSample(const SensorSample& s) override;
     void onEvent(const RuntimeEvent& e) override;
@@ -40,6 +43,9 @@ public:
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
+    // How often a sensor's filter was reset because the sensor was lost, its data-ready line went
+    // silent or its chip reset itself (once per outage).
+    std::uint32_t resets(int sensor) const;
     // The body's acceleration (ENU, m/s^2) as the body solver tracks it, handed to every filter
     // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
     // next call. Zero (the default): unknown.
@@ -49,9 +55,11 @@ private:
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Latest> latest_;
     std::vector<bool> valid_;
+    std::vector<bool> resetPending_;  // reset while out, no sample since
+    std::vector<std::uint32_t> resets_;
     Calibrations calibrations_;
     fusion::Vec3<float> bodyAccEnu_{};
-    RecordingWriter* writer_;
+    RecordSink* records_;
     std::uint64_t updates_ = 0;
 };
 

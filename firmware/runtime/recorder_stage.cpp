@@ -65,23 +65,86 @@ void RecorderStage::check(int r) {
 }
 
 void RecorderStage::onSample(const SensorSample& s) {
-    if (writer_->error() == 0) {
+    if (writable()) {
         check(writer_->writeRawSample(s.sensor, s.sample));
     }
 }
 
 void RecorderStage::onEvent(const RuntimeEvent& e) {
-    if (writer_->error() == 0) {
+    if (writable()) {
         check(writer_->writeEvent(e.t, toEventKind(e.kind), e.sensor, e.error, ""));
     }
 }
 
 void RecorderStage::onTick(Timestamp) {
-    check(writer_->maybeSync());
+    if (writer_ != nullptr && !closed_) {
+        check(writer_->maybeSync());
+    }
 }
 
-void RecorderStage::finish(Timestamp) {
-    check(writer_->close());
+void RecorderStage::finish(Timestamp now) {
+    if (take_) {
+        event(now, cap::EventKind::TakeStopped, -1, 0, "the capture ended");
+    }
+    if (writer_ != nullptr && !closed_) {
+        check(writer_->close());
+        closed_ = true;
+    }
+}
+
+void RecorderStage::orientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) {
+    if (writable()) {
+        check(writer_->writeOrientation(sensor, t, q));
+    }
+}
+
+void RecorderStage::pose(Timestamp t, const Eigen::Vector3f& rootM,
+                         std::span<const Eigen::Quaternionf> jointRotations,
+                         std::uint32_t notMeasured) {
+    if (writable()) {
+        check(writer_->writePose(t, rootM, jointRotations, notMeasured));
+    }
+}
+
+void RecorderStage::event(Timestamp t, cap::EventKind kind, int sensor, int error,
+                          std::string_view text) {
+    if (writable()) {
+        check(writer_->writeEvent(t, kind, sensor, error, text));
+    }
+}
+
+void RecorderStage::metadata(Timestamp t, std::string_view toml) {
+    if (writable()) {
+        check(writer_->writeMetadata(t, toml));
+    }
+}
+
+void RecorderStage::marker(Timestamp t, std::string_view label) {
+    if (writable()) {
+        check(writer_->writeMarker(t, label));
+    }
+}
+
+std::unique_ptr<RecordingWriter> RecorderStage::beginTake(std::unique_ptr<RecordingWriter> writer,
+                                                          Timestamp t, std::string_view name) {
+    std::unique_ptr<RecordingWriter> previous = endTake(t);
+    writer_ = std::move(writer);
+    closed_ = false;
+    reported_ = false;
+    take_ = true;
+    event(t, cap::EventKind::TakeStarted, -1, 0, name);
+    return previous;
+}
+
+std::unique_ptr<RecordingWriter> RecorderStage::endTake(Timestamp t) {
+    if (writer_ == nullptr || closed_) {
+        return nullptr;
+    }
+    event(t, cap::EventKind::TakeStopped, -1, 0, "");
+    take_ = false;
+    // Hand what is buffered to the writer's I/O thread now; the caller's close() syncs it.
+    check(writer_->maybeSync());
+    return std::move(writer_);
 }
 
 std::string recordingMetadata(const board::Board& board, const std::string& boardText,

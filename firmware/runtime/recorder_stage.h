@@ -1,16 +1,24 @@
 // The pipeline stage that records: raw samples and events into a .cap file, kept durable by the
-// writer's sync interval. A write error (full disk) stops the recording, not the capture.
+// writer's sync interval, and what the other stages compute (orientations, poses, calibration)
+// through its RecordSink side: the only writer of records. A capture records one file from start
+// to end (`caphub run --record`), or takes: each its own file, begun and ended by commands while
+// the capture runs; between takes nothing is written. A write error (full disk) stops the take,
+// not the capture.
 #pragma once
 
 #include <memory>
 
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/record_sink.h"
 
 namespace caphub::firmware {
 
-class RecorderStage final : public PipelineStage {
+class RecorderStage final : public PipelineStage, public RecordSink {
 public:
+    // Records nothing until a take begins.
+    RecorderStage() = default;
+    // Records into writer from the start of the capture to its end.
     explicit RecorderStage(std::unique_ptr<RecordingWriter> writer) : writer_(std::move(writer)) {}
 
     void onSample(const SensorSample& s) override;
@@ -18,15 +26,40 @@ public:
     void onTick(Timestamp now) override;
     void finish(Timestamp now) override;
 
+    void orientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) override;
+    void pose(Timestamp t, const Eigen::Vector3f& rootM,
+              std::span<const Eigen::Quaternionf> jointRotations,
+              std::uint32_t notMeasured) override;
+    void event(Timestamp t, cap::EventKind kind, int sensor, int error,
+               std::string_view text) override;
+    void metadata(Timestamp t, std::string_view toml) override;
+    void marker(Timestamp t, std::string_view label) override;
+
+    // Takes, on the pipeline thread. The writer is created by the caller (opening a file and
+    // writing its header may wait for the disk: not on the pipeline thread); its first record
+    // is a "take started" event named `name`. A take already running is ended first and
+    // returned.
+    std::unique_ptr<RecordingWriter> beginTake(std::unique_ptr<RecordingWriter> writer, Timestamp t,
+                                               std::string_view name);
+    // Ends the take being recorded with a "take stopped" event and hands its writer back, to be
+    // closed (flushed and synced) by the caller off the pipeline thread; null when none runs.
+    std::unique_ptr<RecordingWriter> endTake(Timestamp t);
+
+    // The take being recorded (after the capture: the last one, closed), or null.
+    const RecordingWriter* current() const { return writer_.get(); }
+    bool recording() const { return writer_ != nullptr && !closed_; }
+    // The one recording of a capture that records from its start (it has one).
     const RecordingWriter& writer() const { return *writer_; }
-    RecordingWriter& writer() { return *writer_; }
-    // The error that stopped the recording (0: none).
-    int error() const { return writer_->error(); }
+    // The error that stopped the current take (0: none, or no take).
+    int error() const { return writer_ ? writer_->error() : 0; }
 
 private:
+    bool writable() const { return writer_ != nullptr && !closed_ && writer_->error() == 0; }
     void check(int r);
 
     std::unique_ptr<RecordingWriter> writer_;
+    bool closed_ = false;
+    bool take_ = false;  // the writer holds a take begun by beginTake()
     bool reported_ = false;
 };
 

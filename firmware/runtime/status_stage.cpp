@@ -38,6 +38,18 @@ StatusStage::StatusStage(const board::Board& board, const Capture& capture,
     for (const auto& load : board::computeBusLoads(board)) {
         plannedLoad_.push_back(load.utilisation);
     }
+    writer_ = std::thread([this] { writerLoop(); });
+}
+
+StatusStage::~StatusStage() {
+    {
+        std::lock_guard lock(mutex_);
+        stopping_ = true;
+    }
+    wake_.notify_all();
+    if (writer_.joinable()) {
+        writer_.join();
+    }
 }
 
 void StatusStage::onSample(const SensorSample& s) {
@@ -59,83 +71,168 @@ void StatusStage::onTick(Timestamp now) {
         first_ = false;
         started_ = now;
         lastWrite_ = now;
-        write(now, true);
+        publish(now, true);
         return;
     }
     if (now - lastWrite_ >= std::chrono::seconds(1)) {
-        write(now, true);
+        publish(now, true);
     }
 }
 
 void StatusStage::finish(Timestamp now) {
-    write(now, false);
+    if (first_) {
+        started_ = now;
+        lastWrite_ = now;
+        first_ = false;
+    }
+    publish(now, false);
+    std::unique_lock lock(mutex_);
+    const std::uint64_t target = published_;
+    doneWake_.wait(lock, [&] { return written_ >= target || stopping_; });
 }
 
-std::string StatusStage::json(Timestamp now, bool running) const {
-    nlohmann::ordered_json doc;
-    doc["board"] = board_.name;
-    doc["running"] = running;
-    doc["uptime_s"] = toSeconds(now - started_);
+StatusSnapshot StatusStage::latest() const {
+    std::lock_guard lock(mutex_);
+    return latest_;
+}
+
+std::uint64_t StatusStage::written() const {
+    std::lock_guard lock(mutex_);
+    return written_;
+}
+
+StatusSnapshot StatusStage::snapshot(Timestamp now, bool running) const {
+    StatusSnapshot s;
+    s.board = board_.name;
+    s.running = running;
+    s.uptimeS = toSeconds(now - started_);
     const double sinceWrite = std::max(1e-9, toSeconds(now - lastWrite_));
-    nlohmann::ordered_json sensors = nlohmann::ordered_json::array();
     for (const auto& w : capture_.workers()) {
         for (std::size_t k = 0; k < w->sensorCount(); ++k) {
             const auto i = static_cast<std::size_t>(w->hardware().sensors[k].sensor);
             const auto& c = w->counters(k);
-            nlohmann::ordered_json s;
-            s["name"] = board_.sensors[i].name;
-            s["segment"] = std::string(board::segmentName(board_.sensors[i].segment));
-            s["online"] = c.online.load();
-            s["samples"] = samples_[i];
-            s["rate_hz"] = static_cast<double>(samples_[i] - samplesAtLastWrite_[i]) / sinceWrite;
-            s["configured_hz"] = board_.sensors[i].achievedOdrHz;
-            s["read_errors"] = c.readErrors.load();
-            s["dropped"] = c.dropped.load();
-            s["lost"] = c.lost.load();
-            s["events"] = events_[i];
-            sensors.push_back(s);
+            StatusSnapshot::Sensor o;
+            o.name = board_.sensors[i].name;
+            o.segment = std::string(board::segmentName(board_.sensors[i].segment));
+            o.online = c.online.load();
+            o.samples = samples_[i];
+            o.rateHz = static_cast<double>(samples_[i] - samplesAtLastWrite_[i]) / sinceWrite;
+            o.configuredHz = board_.sensors[i].achievedOdrHz;
+            o.readErrors = c.readErrors.load();
+            o.dropped = c.dropped.load();
+            o.lost = c.lost.load();
+            o.events = events_[i];
+            s.sensors.push_back(std::move(o));
         }
+    }
+    for (const auto& w : capture_.workers()) {
+        const auto b = static_cast<std::size_t>(w->hardware().bus);
+        StatusSnapshot::Bus o;
+        o.name = board_.buses[b].name;
+        o.plannedLoad = b < plannedLoad_.size() ? plannedLoad_[b] : 0.0;
+        if (const hal::BusCounters* c = w->hardware().counters()) {
+            o.counted = true;
+            o.transactions = c->transactions.load();
+            o.bytes = c->bytes.load();
+            o.errors = c->errors.load();
+        }
+        s.buses.push_back(std::move(o));
+    }
+    s.latency = latency_;  // a copy: the percentiles are sorted on the writer thread
+    if (const RecordingWriter* w = recorder_ != nullptr ? recorder_->current() : nullptr) {
+        const auto st = w->stats();
+        s.recording = StatusSnapshot::Recording{
+            st.records, st.bytesWritten, st.durableRecords, st.syncs,
+            recorder_->error() == 0 ? std::string() : errnoText(recorder_->error())};
+    }
+    return s;
+}
+
+void StatusStage::publish(Timestamp now, bool running) {
+    StatusSnapshot s = snapshot(now, running);
+    lastWrite_ = now;
+    samplesAtLastWrite_ = samples_;
+    {
+        std::lock_guard lock(mutex_);
+        latest_ = std::move(s);
+        ++published_;
+    }
+    wake_.notify_one();
+}
+
+void StatusStage::writerLoop() {
+    std::uint64_t seen = 0;
+    std::unique_lock lock(mutex_);
+    for (;;) {
+        wake_.wait(lock, [&] { return stopping_ || published_ != seen; });
+        if (published_ == seen) {
+            return;  // stopping, and everything published is written
+        }
+        seen = published_;
+        const StatusSnapshot s = latest_;
+        lock.unlock();
+        writeFile(statusJson(s));
+        lock.lock();
+        written_ = seen;
+        doneWake_.notify_all();
+    }
+}
+
+std::string statusJson(const StatusSnapshot& s) {
+    nlohmann::ordered_json doc;
+    doc["board"] = s.board;
+    doc["running"] = s.running;
+    doc["uptime_s"] = s.uptimeS;
+    nlohmann::ordered_json sensors = nlohmann::ordered_json::array();
+    for (const auto& o : s.sensors) {
+        nlohmann::ordered_json j;
+        j["name"] = o.name;
+        j["segment"] = o.segment;
+        j["online"] = o.online;
+        j["samples"] = o.samples;
+        j["rate_hz"] = o.rateHz;
+        j["configured_hz"] = o.configuredHz;
+        j["read_errors"] = o.readErrors;
+        j["dropped"] = o.dropped;
+        j["lost"] = o.lost;
+        j["events"] = o.events;
+        sensors.push_back(j);
     }
     doc["sensors"] = sensors;
     nlohmann::ordered_json buses = nlohmann::ordered_json::array();
-    for (const auto& w : capture_.workers()) {
-        const auto b = static_cast<std::size_t>(w->hardware().bus);
+    for (const auto& o : s.buses) {
         nlohmann::ordered_json bus;
-        bus["name"] = board_.buses[b].name;
-        bus["planned_load"] = b < plannedLoad_.size() ? plannedLoad_[b] : 0.0;
-        if (const hal::BusCounters* c = w->hardware().counters()) {
-            bus["transactions"] = c->transactions.load();
-            bus["bytes"] = c->bytes.load();
-            bus["errors"] = c->errors.load();
+        bus["name"] = o.name;
+        bus["planned_load"] = o.plannedLoad;
+        if (o.counted) {
+            bus["transactions"] = o.transactions;
+            bus["bytes"] = o.bytes;
+            bus["errors"] = o.errors;
         }
         buses.push_back(bus);
     }
     doc["buses"] = buses;
-    if (const std::size_t n = latency_.size(); n > 0) {
+    if (const std::size_t n = s.latency.size(); n > 0) {
         const auto ms = [](Duration d) { return toSeconds(d) * 1e3; };
         doc["latency_ms"] = {{"window", n},
-                             {"p50", ms(latency_.percentile(0.5))},
-                             {"p99", ms(latency_.percentile(0.99))},
-                             {"max", ms(latency_.max())}};
+                             {"p50", ms(s.latency.percentile(0.5))},
+                             {"p99", ms(s.latency.percentile(0.99))},
+                             {"max", ms(s.latency.max())}};
     }
-    if (recorder_ != nullptr) {
-        const auto st = recorder_->writer().stats();
-        doc["recording"] = {
-            {"records", st.records},
-            {"bytes", st.bytesWritten},
-            {"durable_records", st.durableRecords},
-            {"syncs", st.syncs},
-            {"error", recorder_->error() == 0 ? "" : errnoText(recorder_->error())}};
+    if (s.recording) {
+        const auto& r = *s.recording;
+        doc["recording"] = {{"records", r.records},
+                            {"bytes", r.bytes},
+                            {"durable_records", r.durableRecords},
+                            {"syncs", r.syncs},
+                            {"error", r.error}};
     } else {
         doc["recording"] = nullptr;
     }
     return doc.dump(2) + "\n";
 }
 
-void StatusStage::write(Timestamp now, bool running) {
-    const std::string text = json(now, running);
-    lastWrite_ = now;
-    samplesAtLastWrite_ = samples_;
+void StatusStage::writeFile(const std::string& text) {
     // Per process: two captures sharing a status path never write into each other's file.
     const fs::path tmp = fs::path(path_.string() + "." + std::to_string(getpid()) + ".tmp");
     std::error_code ec;

@@ -1,7 +1,8 @@
 // The capture of a virtual suit on one thread against a stepped clock: the same bus workers,
 // drivers and chip models as `caphub run`, but deterministic (the same seed gives the same
-// samples, bit for bit) and as fast as the machine allows. For `caphub sim`, tests and
-// benchmarks; the hub itself runs Capture, one thread per bus.
+// samples, bit for bit) and as fast as the machine allows, handing each sample to a callback.
+// For `caphub sim`, calibrate, selftest, tests and benchmarks that want the raw samples; the
+// stepped run of a whole pipeline (stages, commands) is Capture's stepped mode (the Hub's).
 #pragma once
 
 #include <functional>

@@ -5,6 +5,7 @@
 #include "firmware/runtime/body_stage.h"
 
 #include <array>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -97,6 +98,49 @@ TEST(FusionStage, CountsTheEpisodesOfGyroscopeClippingPerSensor) {
     EXPECT_EQ(fusion.clipEvents(3), 2U);
     EXPECT_EQ(fusion.clipEvents(5), 0U);
     EXPECT_EQ(fusion.clipEvents(99), 0U);  // no such sensor
+}
+
+// A sensor whose data-ready line falls silent is out: it has no orientation (the body marks its
+// segment), and when it is back its filter starts again from its first samples instead of
+// turning slowly from where it was. Here the sensor comes back upside down (re-strapped, or the
+// chip reset): before the fix it kept its old orientation through the outage and then needed
+// seconds to turn over.
+TEST(FusionStage, ASensorThatWasOutStartsAgainFromItsFirstSamples) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    firmware::SensorSample s;
+    s.sensor = 2;
+    s.sample.flags = hal::ImuSample::kMagFresh;
+    const double odr = b.sensors[2].achievedOdrHz;
+    Timestamp t{1s};
+    const auto feed = [&](const Eigen::Vector3f& acc, const Eigen::Vector3f& mag, int n) {
+        s.sample.accMps2 = acc;
+        s.sample.magUt = mag;
+        s.sample.gyrRadps.setZero();
+        for (int i = 0; i < n; ++i) {
+            s.sample.t = t;
+            t += periodFromHz(odr);
+            fusion.onSample(s);
+        }
+    };
+    // Level, facing north (field 20 uT north, 40 uT down): sensor frame = ENU.
+    feed({0, 0, 9.81f}, {0, 20, -40}, static_cast<int>(odr * 3));
+    ASSERT_NE(fusion.latest(2), nullptr);
+    EXPECT_LT(fusion.latest(2)->orientation.angularDistance(Eigen::Quaternionf::Identity()), 0.05);
+
+    firmware::RuntimeEvent silent{firmware::RuntimeEvent::Kind::LineSilent, 2, t, -ETIMEDOUT};
+    fusion.onEvent(silent);
+    EXPECT_EQ(fusion.latest(2), nullptr);
+    EXPECT_EQ(fusion.resets(2), 1u);
+    fusion.onEvent(silent);  // one outage, one reset
+    EXPECT_EQ(fusion.resets(2), 1u);
+
+    // Back, turned 180 deg about east (x): gravity and the field seen the other way up.
+    const Eigen::Quaternionf flipped(
+        Eigen::AngleAxisf(static_cast<float>(hal::kPi), Eigen::Vector3f::UnitX()));
+    feed({0, 0, -9.81f}, {0, -20, 40}, 5);
+    ASSERT_NE(fusion.latest(2), nullptr);
+    EXPECT_LT(fusion.latest(2)->orientation.angularDistance(flipped) * 180 / hal::kPi, 5.0);
 }
 
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
@@ -218,6 +262,102 @@ TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
         }
         EXPECT_EQ(files, preview.framesRendered());
     }
+}
+
+}  // namespace
+
+namespace {
+
+// The records the stages hand the recorder, kept for a test: the poses' not-measured masks.
+class PoseLog final : public firmware::RecordSink {
+public:
+    void orientation(int, Timestamp, const Eigen::Quaternionf&) override {}
+    void pose(Timestamp t, const Eigen::Vector3f&, std::span<const Eigen::Quaternionf>,
+              std::uint32_t notMeasured) override {
+        poses.emplace_back(t, notMeasured);
+    }
+    void event(Timestamp, firmware::cap::EventKind, int, int, std::string_view) override {}
+    void metadata(Timestamp, std::string_view) override {}
+    void marker(Timestamp, std::string_view) override {}
+    std::vector<std::pair<Timestamp, std::uint32_t>> poses;
+};
+
+// The whole lifecycle through the bus worker, fusion and body: a sensor whose data-ready line
+// sticks for a second goes silent, its segment is flagged as not measured in every pose while it
+// is out (before the fix it was frozen without a word), its filter is reset, and once the line
+// works again the sensor comes back online and its segment is measured again.
+TEST(BodyStage, ASilentSensorsSegmentIsFlaggedInThePosesUntilItIsBack) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    SimulatedClock clock(Timestamp{1s});
+    bs::VirtualChips chips;
+    auto suit = bs::buildVirtualSuit(b, clock, nullptr, &chips);
+    ASSERT_TRUE(suit) << suit.error().message;
+    PoseLog log;
+    firmware::FusionStage fusion(b, &log);
+    firmware::BodyStage bodyStage(b, fusion, &log, clock, firmware::BodyStage::Options{});
+    firmware::SteppedCapture capture(*suit, clock);
+    std::vector<firmware::RuntimeEvent> events;
+    const auto run = [&](Duration d) {
+        capture.runUntil(
+            clock.now() + d,
+            [&](const firmware::SensorSample& s) {
+                fusion.onSample(s);
+                bodyStage.onSample(s);
+            },
+            [&](const firmware::RuntimeEvent& e) {
+                events.push_back(e);
+                fusion.onEvent(e);
+                bodyStage.onEvent(e);
+            });
+    };
+    constexpr int kSensor = 5;
+    const auto bitOf = body::bit(b.sensors[kSensor].segment);
+    // Until every sensor is online its segment is flagged too; measured once it is.
+    run(1s);
+    ASSERT_FALSE(log.poses.empty());
+    EXPECT_NE(log.poses.front().second, 0u);  // at start-up: not yet online
+    for (const auto& [t, m] : log.poses) {
+        if (t > clock.now() - 400ms) {
+            EXPECT_EQ(m, 0u);  // measured before the fault
+        }
+    }
+    const std::size_t before = log.poses.size();
+    chips.imu[kSensor]->setDataReadyStuck(true);
+    const Timestamp stuck = clock.now();
+    run(1500ms);
+    chips.imu[kSensor]->setDataReadyStuck(false);
+    const Timestamp released = clock.now();
+    run(1500ms);
+
+    bool silent = false;
+    bool online = false;
+    for (const auto& e : events) {
+        if (e.sensor == kSensor && e.kind == firmware::RuntimeEvent::Kind::LineSilent) {
+            silent = true;
+        }
+        if (e.sensor == kSensor && e.kind == firmware::RuntimeEvent::Kind::SensorOnline &&
+            e.t > stuck) {
+            online = true;
+        }
+    }
+    ASSERT_TRUE(silent);
+    ASSERT_TRUE(online);
+    EXPECT_EQ(fusion.resets(kSensor), 1u);
+    // Flagged from shortly after the line stuck (the silence takes 20 periods to tell) until it
+    // is back; never flagged once it delivers again; the other segments always measured.
+    int flagged = 0;
+    for (std::size_t k = before; k < log.poses.size(); ++k) {
+        const auto& [t, m] = log.poses[k];
+        EXPECT_EQ(m & ~bitOf, 0u);
+        if (t > stuck + 300ms && t < released) {
+            EXPECT_NE(m & bitOf, 0u) << toSeconds(t - stuck);
+        }
+        if (t > released + 800ms) {
+            EXPECT_EQ(m & bitOf, 0u) << toSeconds(t - released);
+        }
+        flagged += (m & bitOf) != 0;
+    }
+    EXPECT_GT(flagged, 40);  // at least ~0.7 s of 60 Hz poses
 }
 
 }  // namespace

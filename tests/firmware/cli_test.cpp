@@ -325,3 +325,58 @@ TEST(CliReplay, ARecordingWithoutPosesIsAUsageError) {
 }
 
 }  // namespace
+
+namespace {
+
+// `caphub run` on the virtual suit (standing still: quick to build) at a speed, stopped by SIGTERM
+// once it captures (its status file appears): the time from the signal to the process's end
+// (ms), or -1 when it was still running 20 s later (then it is killed). Before the fix, 1e4 and
+// 0.001 both ignored the signal.
+int msToStopOnSigterm(const std::string& speed, const std::string& dir) {
+    const std::string status = dir + "/status-" + speed + ".json";
+    std::filesystem::remove(status);
+    const CliRun r = shell(
+        "bash -c '" + std::string(CAPHUB_BINARY) + " run --board sim-suit-220 --rest --speed " +
+        speed + " --no-record --no-preview --status-file " + status +
+        " >/dev/null 2>&1 & p=$!; "
+        "for i in $(seq 1200); do [ -e " +
+        status +
+        " ] && break; sleep 0.1; done; sleep 0.3; "
+        "t0=$(date +%s%N); kill -TERM $p; "
+        "for i in $(seq 400); do kill -0 $p 2>/dev/null || break; sleep 0.02; done; "
+        "t1=$(date +%s%N); if kill -0 $p 2>/dev/null; then kill -KILL $p; echo hung; fi; "
+        "wait $p; echo \"rc=$? ms=$(((t1 - t0) / 1000000))\"'");
+    std::smatch m;
+    if (r.output.find("hung") != std::string::npos ||
+        !std::regex_search(r.output, m, std::regex("rc=0 ms=([0-9]+)"))) {
+        ADD_FAILURE() << "speed " << speed << ": " << r.output;
+        return -1;
+    }
+    return std::stoi(m[1]);
+}
+
+TEST(CliRun, AnySpeedStopsOnSigtermWithinASecond) {
+    const std::string dir = ::testing::TempDir() + "caphub-sigterm-" + std::to_string(getpid());
+    std::filesystem::create_directories(dir);
+    for (const char* speed : {"10000", "1000000", "1", "0.001"}) {
+        const int ms = msToStopOnSigterm(speed, dir);
+        EXPECT_GE(ms, 0) << speed;
+        EXPECT_LT(ms, 1000 * CAPHUB_SLOWDOWN) << speed;
+    }
+}
+
+TEST(CliRun, AVeryFastRunStopsAtItsDuration) {
+    // 20,000 simulated seconds at 1e5: 0.2 s of real time. Before the fix it never ended; the
+    // capture itself (not the start-up) must end within a second of its duration.
+    const CliRun r = shell("timeout -s KILL 120 " + std::string(CAPHUB_BINARY) +
+                           " run --board sim-suit-220 --rest --speed 1e5 --duration 20000 "
+                           "--no-record --no-preview --status-file " +
+                           ::testing::TempDir() + "caphub-fast-status.json");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex("samples in ([0-9.]+) s"))) << r.output;
+    EXPECT_GE(std::stod(m[1]), 20000.0);
+    EXPECT_LT(std::stod(m[1]), 20000.0 + 1e5 * CAPHUB_SLOWDOWN);  // within a second of real time
+}
+
+}  // namespace

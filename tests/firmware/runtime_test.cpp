@@ -1,5 +1,8 @@
 // The bus workers on the virtual suit: every sample of every sensor arrives, a sensor that
 // stops answering is reported while the others keep going, and comes back by itself.
+#include <cstdio>
+#include <cstdlib>
+#include <future>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -269,6 +272,87 @@ TEST(Capture, ASlowPipelineStillStopsAtTheDuration) {
     EXPECT_GE(stats.elapsed, seconds(2));
     EXPECT_LT(stats.elapsed, seconds(2) + milliseconds(2600 + 500));
     EXPECT_EQ(stats.samples, slow.samples);
+}
+
+// The capture's wait() on another thread, with a bound: a capture that never ends must fail the
+// test, not hang it (its threads cannot be joined, so the process ends here).
+CaptureStats waitAtMost(Capture& capture, std::chrono::seconds bound, const char* what) {
+    auto done = std::async(std::launch::async, [&capture] { return capture.wait(); });
+    if (done.wait_for(bound) != std::future_status::ready) {
+        std::fprintf(stderr, "FAILED: %s: the capture did not end within %lld s\n", what,
+                     static_cast<long long>(bound.count()));
+        std::fflush(stderr);
+        std::_Exit(1);
+    }
+    return done.get();
+}
+
+struct PacedSuit {
+    board::Board board;
+    SimulatedClock clock;
+    board::SuitHardware suit;
+
+    explicit PacedSuit(double rate) : clock(timestampFromNs(1'000'000'000), rate) {
+        auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-suit-220.toml");
+        EXPECT_TRUE(loaded.ok());
+        board = *loaded.board;
+        auto built = board::sim::buildVirtualSuit(board, clock, nullptr);
+        EXPECT_TRUE(built.ok()) << built.error().message;
+        suit = std::move(*built);
+    }
+};
+
+TEST(Capture, ASuitPacedFarFasterThanItCanBeReadStillStopsAtItsDuration) {
+    // 17 sensors at 220 Hz, 10,000 simulated seconds a real second: edges arrive far faster than
+    // a worker reads them. Before the fix each worker chased them forever and the capture never
+    // ended.
+    for (double rate : {1e4, 1e6}) {
+        PacedSuit rig(rate);
+        Capture capture(rig.suit, rig.clock);
+        const auto duration = std::chrono::seconds(static_cast<std::int64_t>(rate / 2));  // 0.5 s
+        capture.start(duration);
+        const CaptureStats stats = waitAtMost(capture, seconds(20), "--speed 1e4");
+        EXPECT_GE(stats.elapsed, duration) << rate;
+    }
+}
+
+TEST(Capture, ARequestedStopEndsAFastCaptureWithinASecond) {
+    PacedSuit rig(1e5);
+    Capture capture(rig.suit, rig.clock);
+    capture.start();  // until requested
+    std::this_thread::sleep_for(milliseconds(300));
+    MonotonicClock real;
+    const Timestamp asked = real.now();
+    capture.requestStop();
+    (void)waitAtMost(capture, seconds(20), "stop at 1e5");
+    EXPECT_LT(real.now() - asked, seconds(1));
+}
+
+TEST(Capture, ARequestedStopEndsASlowCaptureWithinASecond) {
+    // A thousandth of real time: one 220 Hz sample period is 4.5 s of real time, and each wait
+    // of a worker up to 50 s. Before the fix the workers slept through the stop.
+    PacedSuit rig(0.001);
+    Capture capture(rig.suit, rig.clock);
+    capture.start();
+    std::this_thread::sleep_for(milliseconds(300));
+    MonotonicClock real;
+    const Timestamp asked = real.now();
+    capture.requestStop();
+    (void)waitAtMost(capture, seconds(60), "stop at 0.001");
+    EXPECT_LT(real.now() - asked, seconds(1));
+}
+
+TEST(Capture, ThePipelineSleepsUntilTheWorkersWakeIt) {
+    // Woken by the workers' data, not by polling: over a second of 17 x 220 Hz the pipeline is
+    // woken through its eventfd (it would never be if it polled), every sample arrives, and each
+    // wake-up finds samples waiting.
+    PacedSuit rig(1.0);
+    Capture capture(rig.suit, rig.clock);
+    capture.start(seconds(1));
+    const CaptureStats stats = waitAtMost(capture, seconds(20), "woken pipeline");
+    EXPECT_GT(capture.wake().wakeups(), 50u);
+    EXPECT_GT(stats.samples, 17u * 150u);
+    EXPECT_EQ(stats.dropped, 0u);
 }
 
 }  // namespace caphub::firmware

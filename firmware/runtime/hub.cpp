@@ -1,0 +1,230 @@
+#include "firmware/runtime/hub.h"
+
+#include <cctype>
+#include <ctime>
+#include <future>
+
+#include <fmt/format.h>
+
+#include "hal/core/log.h"
+
+namespace caphub::firmware {
+
+namespace fs = std::filesystem;
+
+Result<std::string> takeFileName(const std::string& name, std::time_t when) {
+    constexpr std::size_t kMaxName = 64;
+    if (name.size() > kMaxName) {
+        return Error{EINVAL, fmt::format("a take's name has at most {} characters ({} given)",
+                                         kMaxName, name.size())};
+    }
+    for (char c : name) {
+        const auto u = static_cast<unsigned char>(c);
+        if (!std::isalnum(u) && c != '-' && c != '_' && c != '.') {
+            return Error{EINVAL, fmt::format("a take's name may hold letters, digits, '-', '_' "
+                                             "and '.'; not {}",
+                                             u < 0x20 || u >= 0x7f ? fmt::format("byte 0x{:02x}", u)
+                                                                   : fmt::format("'{}'", c))};
+        }
+    }
+    if (name.starts_with('.')) {
+        return Error{EINVAL, "a take's name may not start with '.'"};
+    }
+    char stamp[32];
+    std::tm local{};
+    localtime_r(&when, &local);
+    std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &local);
+    return name.empty() ? fmt::format("{}.cap", stamp) : fmt::format("{}-{}.cap", stamp, name);
+}
+
+Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, HubOptions options)
+    : board_(board),
+      clock_(clock),
+      options_(std::move(options)),
+      capture_(suit, clock, BusWorker::Options{}, options_.mode),
+      recorder_(options_.recordFromStart ? RecorderStage(std::move(options_.recordFromStart))
+                                         : RecorderStage()),
+      fusion_(board, &recorder_, options_.calibrations),
+      body_(board, fusion_, &recorder_, clock, options_.body) {
+    capture_.setThreadPolicy(options_.threads);
+    // The order is the data's: the recorder takes the raw sample before fusion, fusion's
+    // orientation before the body, the body's pose before the consumers.
+    capture_.addStage(recorder_);
+    capture_.addStage(fusion_);
+    capture_.addStage(body_);
+    if (!options_.statusPath.empty()) {
+        status_ =
+            std::make_unique<StatusStage>(board, capture_, &recorder_, options_.statusPath, clock);
+        capture_.addStage(*status_);
+    }
+    if (options_.previewSinks.liveCount() > 0) {
+        if (!options_.previewSkin) {
+            previewError_ = "no skin to render";
+        } else {
+            preview_ =
+                std::make_unique<PreviewStage>(board, body_, std::move(*options_.previewSkin),
+                                               std::move(options_.previewSinks), options_.preview);
+            capture_.addStage(*preview_);
+        }
+    }
+}
+
+Hub::~Hub() {
+    capture_.requestStop();
+    (void)capture_.wait();
+}
+
+void Hub::start(Duration duration) {
+    started_ = true;
+    capture_.start(duration);
+}
+
+CaptureStats Hub::wait() {
+    return capture_.wait();
+}
+
+CaptureStats Hub::runStepped(Duration duration) {
+    started_ = true;
+    return capture_.runStepped(duration);
+}
+
+Result<void> Hub::onPipeline(const char* what, std::function<void(Timestamp)> fn) {
+    auto done = std::make_shared<std::promise<void>>();
+    std::future<void> finished = done->get_future();
+    const bool posted = started_ && capture_.post([fn = std::move(fn), done](Timestamp t) {
+        fn(t);
+        done->set_value();
+    });
+    if (!posted) {
+        return Error{ESRCH, fmt::format("{}: the capture is not running", what)};
+    }
+    if (finished.wait_for(options_.commandTimeout) != std::future_status::ready) {
+        return Error{ETIMEDOUT, fmt::format("{}: the capture did not carry it out within {:.1f} s",
+                                            what, toSeconds(options_.commandTimeout))};
+    }
+    return {};
+}
+
+std::string Hub::metadata() const {
+    return recordingMetadata(board_, options_.boardText, options_.softwareVersion,
+                             options_.calibrationPath, options_.calibrationText);
+}
+
+Result<TakeInfo> Hub::startTake(const std::string& name) {
+    std::lock_guard lock(commandMutex_);
+    if (options_.recordings.empty()) {
+        return Error{EINVAL, "start take: no recordings folder is configured"};
+    }
+    auto file = takeFileName(name, std::time(nullptr));
+    if (!file) {
+        return Error{EINVAL, "start take: " + file.error().message};
+    }
+    std::error_code ec;
+    fs::create_directories(options_.recordings, ec);
+    if (ec) {
+        return Error{ec.value(), fmt::format("start take: cannot create '{}': {}",
+                                             options_.recordings.string(), ec.message())};
+    }
+    // Two takes in one second: the second gets a suffix (the writer never replaces a file).
+    fs::path path = options_.recordings / *file;
+    for (int k = 2; fs::exists(path, ec) && k < 100; ++k) {
+        path = options_.recordings / fmt::format("{}-{}.cap", fs::path(*file).stem().string(), k);
+    }
+    auto writer = RecordingWriter::create(path.string(), metadata(), options_.writer);
+    if (!writer) {
+        return Error{writer.error().code, "start take: " + writer.error().message};
+    }
+    std::unique_ptr<RecordingWriter> previous;
+    std::unique_ptr<RecordingWriter> fresh = std::move(*writer);
+    auto r = onPipeline("start take", [&](Timestamp t) {
+        previous = recorder_.beginTake(std::move(fresh), t, name);
+        // A take begun after the body calibration carries it, as one from the start would.
+        if (body_.calibrated() && body_.calibration().method != body::CalibrationMethod::None) {
+            recorder_.metadata(t, "[body_calibration]\ntext = " +
+                                      tomlString(body::toText(body_.calibration())) + "\n");
+        }
+        recorder_.event(t, cap::EventKind::Command, -1, 0, "start take " + name);
+    });
+    if (!r) {
+        // The pipeline never took the writer: the empty file is removed again.
+        if (fresh) {
+            (void)fresh->close();
+            fs::remove(path, ec);
+        }
+        return r.error();
+    }
+    if (previous) {
+        (void)previous->close();
+        ++takes_;
+    }
+    take_ = TakeInfo{path, name, 0, 0};
+    log::logger(log::Category::Firmware).info("take started: {}", path.string());
+    return *take_;
+}
+
+Result<TakeInfo> Hub::stopTake() {
+    std::lock_guard lock(commandMutex_);
+    std::unique_ptr<RecordingWriter> ended;
+    auto r = onPipeline("stop take", [&](Timestamp t) {
+        recorder_.event(t, cap::EventKind::Command, -1, 0, "stop take");
+        ended = recorder_.endTake(t);
+    });
+    if (!r) {
+        return r.error();
+    }
+    if (!ended) {
+        return Error{ENOENT, "stop take: no take is being recorded"};
+    }
+    const int closeError = ended->close();
+    TakeInfo info = take_.value_or(TakeInfo{ended->path(), "", 0, 0});
+    info.records = ended->stats().durableRecords;
+    info.error = ended->error() != 0 ? ended->error() : closeError;
+    take_.reset();
+    ++takes_;
+    log::logger(log::Category::Firmware)
+        .info("take stopped: {} ({} records)", info.path.string(), info.records);
+    return info;
+}
+
+Result<void> Hub::marker(const std::string& label) {
+    std::lock_guard lock(commandMutex_);
+    bool recorded = false;
+    auto r = onPipeline("marker", [&](Timestamp t) {
+        recorded = recorder_.recording();
+        recorder_.marker(t, label);
+    });
+    if (!r) {
+        return r;
+    }
+    if (!recorded) {
+        return Error{ENOENT, "marker: no take is being recorded"};
+    }
+    return {};
+}
+
+HubState Hub::state() {
+    HubState s;
+    if (status_) {
+        s.status = status_->latest();
+    }
+    std::lock_guard lock(commandMutex_);
+    s.take = take_;
+    s.takesRecorded = takes_;
+    // The body's figures are the pipeline's: read there, when it runs.
+    (void)onPipeline("state", [&](Timestamp) {
+        s.bodyCalibrated = body_.calibrated();
+        s.bodyCalibration =
+            !body_.calibrationError().empty()
+                ? body_.calibrationError()
+                : (body_.calibrated() ? std::string(body::toString(body_.calibration().method))
+                                      : std::string("not calibrated"));
+        s.poses = body_.poses();
+        if (const RecordingWriter* w = recorder_.current(); w != nullptr && s.take) {
+            s.take->records = w->stats().records;
+            s.take->error = w->error();
+        }
+    });
+    return s;
+}
+
+}  // namespace caphub::firmware

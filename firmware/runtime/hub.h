@@ -1,0 +1,135 @@
+// The Hub: the composition root of a running capture. From a board, its clock and its suit
+// (real buses or the virtual suit, built by the caller) it builds the bus workers, the pipeline
+// and its stages (recorder, fusion, body, status, preview), and takes commands into the running
+// capture from any thread: start and stop a take (each its own .cap file), a marker, and a query
+// of the live state. A command is carried out on the pipeline thread between two batches of
+// samples and recorded in the take as an event; anything that may wait for the disk (creating a
+// take's file, closing it) is done on the commanding thread, never on the pipeline's.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "board/board.h"
+#include "board/hardware.h"
+#include "firmware/recording/writer.h"
+#include "firmware/runtime/body_stage.h"
+#include "firmware/runtime/capture.h"
+#include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/preview_stage.h"
+#include "firmware/runtime/recorder_stage.h"
+#include "firmware/runtime/status_stage.h"
+#include "hal/core/error.h"
+
+namespace caphub::firmware {
+
+struct HubOptions {
+    FusionStage::Calibrations calibrations;  // per board sensor; may be empty
+    BodyStage::Options body;
+    // Where takes are written; their metadata (recordingMetadata) holds these texts.
+    std::filesystem::path recordings;
+    std::string boardText;
+    std::string softwareVersion;
+    std::string calibrationPath;
+    std::string calibrationText;
+    WriterOptions writer;
+    // One recording from the start of the capture to its end (`caphub run --record`), besides
+    // or instead of takes; may be null.
+    std::unique_ptr<RecordingWriter> recordFromStart;
+    std::filesystem::path statusPath;  // empty: no status stage
+    ThreadPolicy threads;
+    // The preview (optional): the skin and the sinks it renders into.
+    std::optional<render::Skin> previewSkin;
+    render::SinkSet previewSinks;
+    PreviewStage::Options preview;
+    // Threaded (a capture in real time) or stepped (the virtual suit on a stepped clock:
+    // deterministic, as fast as the machine allows; run with runStepped()).
+    Capture::Mode mode = Capture::Mode::Threaded;
+    // The longest a command waits for the pipeline thread to carry it out.
+    Duration commandTimeout = std::chrono::seconds(5);
+};
+
+// A take: what was recorded, where.
+struct TakeInfo {
+    std::filesystem::path path;
+    std::string name;
+    std::uint64_t records = 0;  // in the file (after stop: every record, made durable)
+    int error = 0;              // -errno that stopped it early (0: none)
+};
+
+// What the hub is doing, for a query: the status (the latest snapshot, at most a second old),
+// the take being recorded, the body's calibration.
+struct HubState {
+    StatusSnapshot status;
+    std::optional<TakeInfo> take;
+    std::uint64_t takesRecorded = 0;
+    bool bodyCalibrated = false;
+    std::string bodyCalibration;  // the method, or why it failed
+    std::uint64_t poses = 0;
+};
+
+class Hub {
+public:
+    Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, HubOptions options);
+    ~Hub();
+    Hub(const Hub&) = delete;
+    Hub& operator=(const Hub&) = delete;
+
+    // Starts capturing; runs until requestStop() or `duration` of capture-clock time.
+    void start(Duration duration = Duration{0});
+    // Safe from a signal handler.
+    void requestStop() { capture_.requestStop(); }
+    // Blocks until the capture has ended (a take still running is ended and closed).
+    CaptureStats wait();
+    // Stepped mode: the whole capture on the calling thread, for `duration` of the clock.
+    CaptureStats runStepped(Duration duration);
+
+    // Commands, from any thread; each returns once the pipeline has carried it out.
+    // A new take in the recordings folder, named with the date, time and `name` (letters,
+    // digits, '-', '_', '.'; at most 64); a take already running is stopped first.
+    Result<TakeInfo> startTake(const std::string& name = {});
+    // Ends the take being recorded: its file is complete and durable when this returns.
+    Result<TakeInfo> stopTake();
+    // A marker with a label in the take being recorded (none: an error).
+    Result<void> marker(const std::string& label);
+    HubState state();
+
+    Capture& capture() { return capture_; }
+    FusionStage& fusion() { return fusion_; }
+    BodyStage& body() { return body_; }
+    RecorderStage& recorder() { return recorder_; }
+    StatusStage* status() { return status_.get(); }
+    PreviewStage* preview() { return preview_.get(); }
+    // Why the preview is off although sinks were given (empty: it is on, or none was asked).
+    const std::string& previewError() const { return previewError_; }
+
+private:
+    // Runs fn on the pipeline thread and waits for it: an error when the capture is not running
+    // or did not get to it in time.
+    Result<void> onPipeline(const char* what, std::function<void(Timestamp)> fn);
+    std::string metadata() const;
+
+    const board::Board& board_;
+    Clock& clock_;
+    HubOptions options_;
+    Capture capture_;
+    RecorderStage recorder_;
+    FusionStage fusion_;
+    BodyStage body_;
+    std::unique_ptr<StatusStage> status_;
+    std::unique_ptr<PreviewStage> preview_;
+    std::string previewError_;
+    std::mutex commandMutex_;       // one command at a time
+    std::optional<TakeInfo> take_;  // guarded by commandMutex_
+    std::uint64_t takes_ = 0;
+    bool started_ = false;
+};
+
+// A take's file name: "YYYYmmdd-HHMMSS[-name].cap" in local time; an error for a name with
+// other characters than letters, digits, '-', '_' and '.', or longer than 64.
+Result<std::string> takeFileName(const std::string& name, std::time_t when);
+
+}  // namespace caphub::firmware

@@ -1,0 +1,249 @@
+// The Hub on the virtual suit, driven as the control plane will drive it: takes started and
+// stopped while the capture runs, each its own file holding only its own span, markers and
+// commands recorded as events, the state queried, and commands refused when they cannot apply.
+#include "firmware/runtime/hub.h"
+
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "board/loader.h"
+#include "board/sim/virtual_suit.h"
+#include "firmware/recording/reader.h"
+
+namespace caphub::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+struct TakeContents {
+    std::uint64_t samples = 0;
+    std::uint64_t orientations = 0;
+    Timestamp firstSample = Timestamp::max();
+    Timestamp lastSample = Timestamp::min();
+    std::vector<std::pair<cap::EventKind, std::string>> events;
+    std::vector<std::string> markers;
+    std::uint64_t records = 0;
+    std::size_t damage = 0;
+    cap::RecordType lastType = cap::RecordType::Metadata;
+};
+
+TakeContents readTake(const fs::path& path) {
+    TakeContents c;
+    auto reader = RecordingReader::open(path.string());
+    EXPECT_TRUE(reader.ok()) << path;
+    if (!reader) {
+        return c;
+    }
+    RecordView r;
+    while ((*reader)->next(r) == 1) {
+        c.lastType = r.type;
+        ++c.records;
+        switch (r.type) {
+            case cap::RecordType::RawSample:
+                ++c.samples;
+                c.firstSample = std::min(c.firstSample, r.t);
+                c.lastSample = std::max(c.lastSample, r.t);
+                break;
+            case cap::RecordType::Orientation:
+                ++c.orientations;
+                break;
+            case cap::RecordType::Event: {
+                cap::EventKind kind{};
+                int sensor = 0;
+                int error = 0;
+                std::string text;
+                EXPECT_TRUE(decodeEvent(r, kind, sensor, error, text));
+                c.events.emplace_back(kind, text);
+                break;
+            }
+            case cap::RecordType::Marker:
+                c.markers.emplace_back(r.payload.begin(), r.payload.end());
+                break;
+            default:
+                break;
+        }
+    }
+    c.damage = (*reader)->damage().size();
+    return c;
+}
+
+bool hasEvent(const TakeContents& c, cap::EventKind kind, const std::string& text) {
+    for (const auto& [k, t] : c.events) {
+        if (k == kind && t == text) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// Waits (at most 20 s of real time) until the running take holds `n` records: the tests do not
+// depend on how fast a loaded machine runs the capture.
+bool waitForRecords(Hub& hub, std::uint64_t n) {
+    for (int i = 0; i < 400; ++i) {
+        const HubState s = hub.state();
+        if (s.take && s.take->records >= n) {
+            return true;
+        }
+        std::this_thread::sleep_for(milliseconds(50));
+    }
+    return false;
+}
+
+struct HubRig {
+    board::Board board;
+    SimulatedClock clock;
+    board::SuitHardware suit;
+    fs::path dir;
+    std::unique_ptr<Hub> hub;
+
+    explicit HubRig(const std::string& name)
+        : clock(timestampFromNs(1'000'000'000), 4.0),
+          dir(fs::path(::testing::TempDir()) / ("caphub-hub-" + name)) {
+        fs::remove_all(dir);
+        auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+        EXPECT_TRUE(loaded.ok());
+        board = *loaded.board;
+        auto built = board::sim::buildVirtualSuit(board, clock, nullptr);
+        EXPECT_TRUE(built.ok()) << built.error().message;
+        suit = std::move(*built);
+        HubOptions o;
+        o.recordings = dir;
+        o.softwareVersion = "hub-test";
+        o.statusPath = dir / "status.json";
+        hub = std::make_unique<Hub>(board, clock, suit, std::move(o));
+    }
+};
+
+TEST(Hub, TakesStartAndStopWhileTheCaptureRunsEachInItsOwnFile) {
+    HubRig rig("takes");
+    // Before the capture runs, commands are refused with a reason.
+    auto early = rig.hub->startTake("early");
+    ASSERT_FALSE(early.ok());
+    EXPECT_NE(early.error().message.find("not running"), std::string::npos);
+
+    rig.hub->start();
+    std::this_thread::sleep_for(milliseconds(300));         // the sensors come online
+    EXPECT_FALSE(rig.hub->marker("nothing to mark").ok());  // no take yet
+    EXPECT_FALSE(rig.hub->stopTake().ok());
+
+    const Timestamp beforeFirst = rig.clock.now();
+    auto first = rig.hub->startTake("walk-1");
+    ASSERT_TRUE(first.ok()) << first.error().message;
+    EXPECT_EQ(first->path.parent_path(), rig.dir);
+    EXPECT_TRUE(first->path.filename().string().ends_with("-walk-1.cap")) << first->path;
+    ASSERT_TRUE(waitForRecords(*rig.hub, 600));
+    ASSERT_TRUE(rig.hub->marker("left heel strike").ok());
+    const HubState during = rig.hub->state();
+    ASSERT_TRUE(during.take.has_value());
+    EXPECT_EQ(during.take->path, first->path);
+    EXPECT_GE(during.take->records, 600u);
+    ASSERT_TRUE(waitForRecords(*rig.hub, 1200));
+    auto stopped = rig.hub->stopTake();
+    ASSERT_TRUE(stopped.ok()) << stopped.error().message;
+    const Timestamp afterFirst = rig.clock.now();
+    EXPECT_EQ(stopped->path, first->path);
+    EXPECT_EQ(stopped->error, 0);
+
+    std::this_thread::sleep_for(milliseconds(400));  // between takes: nothing is written
+    const Timestamp beforeSecond = rig.clock.now();
+    auto second = rig.hub->startTake("");
+    ASSERT_TRUE(second.ok()) << second.error().message;
+    EXPECT_NE(second->path, first->path);
+    EXPECT_FALSE(rig.hub->startTake("bad/name").ok());  // refused; the take goes on
+    EXPECT_FALSE(rig.hub->startTake("../up").ok());
+    ASSERT_TRUE(waitForRecords(*rig.hub, 800));
+    rig.hub->requestStop();
+    (void)rig.hub->wait();  // ends the second take with the capture
+    EXPECT_FALSE(rig.hub->marker("too late").ok());
+
+    const TakeContents a = readTake(first->path);
+    EXPECT_EQ(a.damage, 0u);
+    // Samples and their orientations, about half the records each.
+    EXPECT_GT(a.samples, 400u);
+    EXPECT_GT(a.orientations, 400u);
+    EXPECT_GE(a.firstSample, beforeFirst - milliseconds(100));
+    EXPECT_LE(a.lastSample, afterFirst);
+    ASSERT_FALSE(a.events.empty());
+    EXPECT_EQ(a.events.front().first, cap::EventKind::TakeStarted);
+    EXPECT_EQ(a.events.front().second, "walk-1");
+    EXPECT_TRUE(hasEvent(a, cap::EventKind::Command, "stop take"));
+    EXPECT_EQ(a.events.back().first, cap::EventKind::TakeStopped);
+    EXPECT_EQ(a.lastType, cap::RecordType::Event);  // the take's last record
+    ASSERT_EQ(a.markers.size(), 1u);
+    EXPECT_EQ(a.markers[0], "left heel strike");
+    EXPECT_EQ(stopped->records, a.records);
+
+    const TakeContents b = readTake(second->path);
+    EXPECT_EQ(b.damage, 0u);
+    EXPECT_GT(b.samples, 300u);  // of at least 800 records
+    // Nothing from the gap between the takes.
+    EXPECT_GE(b.firstSample, beforeSecond - milliseconds(100));
+    EXPECT_GT(b.firstSample, afterFirst + milliseconds(800));
+    EXPECT_EQ(b.events.front().first, cap::EventKind::TakeStarted);
+    EXPECT_EQ(b.events.back().first, cap::EventKind::TakeStopped);
+    // Only the two takes were written (and the status).
+    std::size_t caps = 0;
+    for (const auto& e : fs::directory_iterator(rig.dir)) {
+        caps += e.path().extension() == ".cap";
+    }
+    EXPECT_EQ(caps, 2u);
+}
+
+// The stepped mode drives the same pipeline (recorder, fusion, body) on one thread: twice from
+// the same start it records the same records, bit for bit.
+TEST(Hub, SteppedRunsRecordTheSameRecordsEveryTime) {
+    const auto recordOnce = [](const std::string& name) {
+        auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+        EXPECT_TRUE(loaded.ok());
+        const board::Board board = *loaded.board;
+        SimulatedClock clock(timestampFromNs(1'000'000'000));
+        auto suit = board::sim::buildVirtualSuit(board, clock, nullptr);
+        EXPECT_TRUE(suit.ok());
+        const fs::path path = fs::path(::testing::TempDir()) / ("caphub-hub-stepped-" + name);
+        fs::remove(path);
+        HubOptions o;
+        o.mode = Capture::Mode::Stepped;
+        auto writer = RecordingWriter::create(path.string(), "");
+        EXPECT_TRUE(writer.ok());
+        o.recordFromStart = std::move(*writer);
+        Hub hub(board, clock, *suit, std::move(o));
+        const CaptureStats stats = hub.runStepped(seconds(2));
+        EXPECT_GT(stats.samples, 800u);  // 10 sensors at 50 Hz, after their start-up
+        EXPECT_GT(hub.body().poses(), 50u);
+        std::vector<std::uint8_t> bytes;
+        auto reader = RecordingReader::open(path.string());
+        EXPECT_TRUE(reader.ok());
+        RecordView v;
+        while ((*reader)->next(v) == 1) {
+            bytes.push_back(static_cast<std::uint8_t>(v.type));
+            bytes.insert(bytes.end(), v.payload.begin(), v.payload.end());
+        }
+        return bytes;
+    };
+    const auto a = recordOnce("a");
+    const auto b = recordOnce("b");
+    EXPECT_GT(a.size(), 10000u);
+    EXPECT_EQ(a, b);
+}
+
+TEST(Hub, TakeNamesAreCheckedAndDated) {
+    const std::time_t when = 1'700'000'000;
+    auto plain = takeFileName("", when);
+    ASSERT_TRUE(plain.ok());
+    EXPECT_EQ(plain->size(), std::string("20231114-221320.cap").size());
+    auto named = takeFileName("jump_2.b", when);
+    ASSERT_TRUE(named.ok());
+    EXPECT_TRUE(named->ends_with("-jump_2.b.cap"));
+    for (const char* bad : {"a/b", "..", ".hidden", "a b", "x\n", "tab\t"}) {
+        EXPECT_FALSE(takeFileName(bad, when).ok()) << bad;
+    }
+    EXPECT_FALSE(takeFileName(std::string(65, 'a'), when).ok());
+    EXPECT_TRUE(takeFileName(std::string(64, 'a'), when).ok());
+}
+
+}  // namespace
+}  // namespace caphub::firmware
