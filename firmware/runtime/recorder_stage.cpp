@@ -80,7 +80,13 @@ void RecorderStage::onTick(Timestamp) {
     check(writer_->maybeSync());
 }
 
-void RecorderStage::finish(Timestamp) {
+void RecorderStage::finish(Timestamp now) {
+    if (writer_->error() == 0) {
+        // The last record of a recording that ran to its end: a reader tells it from one cut
+        // short (a crash, a power cut), which has none, and from one a write error stopped,
+        // whose stop event carries the error.
+        check(writer_->writeEvent(now, cap::EventKind::RecordingStopped, -1, 0, kEndOfCapture));
+    }
     check(writer_->close());
 }
 

@@ -1,13 +1,18 @@
 // The pipeline stage that records: raw samples and events into a .cap file, kept durable by the
-// writer's sync interval. A write error (full disk) stops the recording, not the capture.
+// writer's sync interval, ended by a "recording stopped" event. A write error (full disk) stops
+// the recording, not the capture.
 #pragma once
 
 #include <memory>
+#include <string_view>
 
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
 
 namespace caphub::firmware {
+
+// The text of the "recording stopped" event that ends a recording at the end of the capture.
+inline constexpr std::string_view kEndOfCapture = "end of capture";
 
 class RecorderStage final : public PipelineStage {
 public:
