@@ -151,6 +151,11 @@ private:
                   fmt::format("expected {}, found {}", expected, typeName(*n)));
             return std::nullopt;
         }
+        if (!std::isfinite(v)) {
+            error(n->source(), join(path, key),
+                  fmt::format("{} is not a finite number (expected {})", v, expected));
+            return std::nullopt;
+        }
         if (!(v >= lo && v <= hi)) {
             error(n->source(), join(path, key),
                   fmt::format("{:g} is out of range (expected {})", v, expected));
@@ -181,11 +186,13 @@ private:
         return v;
     }
 
-    // A fixed-size array of numbers.
+    // A fixed-size array of finite numbers, each within [lo, hi]; reports the first bad element
+    // at its own position.
     template <std::size_t N>
     std::optional<std::array<double, N>> getNumbers(const toml::table& t, std::string_view key,
                                                     const std::string& path,
-                                                    std::string_view expected) {
+                                                    std::string_view expected, double lo,
+                                                    double hi) {
         const toml::node* n = t.get(key);
         if (n == nullptr) {
             return std::nullopt;
@@ -206,6 +213,18 @@ private:
             } else {
                 error(e.source(), join(path, key),
                       fmt::format("expected {}, element {} is {}", expected, i, typeName(e)));
+                return std::nullopt;
+            }
+            if (!std::isfinite(out[i])) {
+                error(e.source(), join(path, key),
+                      fmt::format("element {} is {}, not a finite number (expected {})", i, out[i],
+                                  expected));
+                return std::nullopt;
+            }
+            if (out[i] < lo || out[i] > hi) {
+                error(e.source(), join(path, key),
+                      fmt::format("element {} is {:g}, out of range (expected {})", i, out[i],
+                                  expected));
                 return std::nullopt;
             }
         }
@@ -766,7 +785,10 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
     if (quat != nullptr && euler != nullptr) {
         error(euler->source(), path + ".mounting_euler_deg",
               "give the mounting either as mounting_quat or as mounting_euler_deg, not both");
-    } else if (auto q = getNumbers<4>(t, "mounting_quat", path, "4 numbers [w, x, y, z]")) {
+    } else if (auto q = getNumbers<4>(t, "mounting_quat", path,
+                                      "a unit quaternion, 4 numbers [w, x, y, z] within +-1",
+                                      -1.001, 1.001)) {
+        // Elements up to 1.001: the norm below is allowed 1e-3 of slack.
         const Quatd qq((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
         const double n = quatNorm(qq);
         if (std::abs(n - 1.0) > 1e-3) {
@@ -776,7 +798,8 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
             s.mounting = qq.normalized();
         }
     } else if (auto e =
-                   getNumbers<3>(t, "mounting_euler_deg", path, "3 angles in degrees [x, y, z]")) {
+                   getNumbers<3>(t, "mounting_euler_deg", path,
+                                 "3 angles in degrees [x, y, z], each within +-360", -360, 360)) {
         constexpr double kDeg = 3.14159265358979323846 / 180.0;
         // Rotations about the segment's fixed x, then y, then z axes = intrinsic Z-Y-X.
         Quatd fromEuler;
@@ -784,14 +807,11 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
                                  fromEuler);
         s.mounting = fromEuler;
     }
-    if (auto p = getNumbers<3>(t, "position_m", path, "3 numbers [x, y, z] in m")) {
-        const Vec3d pos((*p)[0], (*p)[1], (*p)[2]);
-        if (pos.cwiseAbs().maxCoeff() > 1.0) {
-            error(t.get("position_m")->source(), path + ".position_m",
-                  "a sensor sits within 1 m of its segment's origin");
-        } else {
-            s.positionM = pos;
-        }
+    if (auto p = getNumbers<3>(t, "position_m", path,
+                               "3 numbers [x, y, z] in m, each within +-1 m: a sensor sits "
+                               "within 1 m of its segment's origin",
+                               -1, 1)) {
+        s.positionM = Vec3d((*p)[0], (*p)[1], (*p)[2]);
     }
     sensorPaths_.push_back(path);
     board_.sensors.push_back(std::move(s));

@@ -150,7 +150,15 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         return Error{EIO, "body calibration: the capture ended before the T-pose was averaged"};
     }
     r.poses = bodyStage.poses();
-    r.score = scorer.score();
+    const auto score = scorer.score();
+    if (!score) {
+        // Nothing to average: a table of zeros would read as a perfect score.
+        return Error{EINVAL,
+                     fmt::format("clip '{}' is too short to score: {:.3f} s after the {:.2f} s "
+                                 "lead-in gave no pose at {:g} Hz to compare with the truth",
+                                 r.clip, r.clipS, r.leadInS, o.poseRateHz)};
+    }
+    r.score = *score;
     r.score.stanceChanges = bodyStage.solver().rootTracker().stanceChanges();
     r.calibration = calibrationName(bodyStage);
     for (std::size_t i = 0; i < b.sensors.size(); ++i) {

@@ -69,8 +69,8 @@ struct EvaluateResult {
     double wallS = 0;
 };
 
-// Errors: a board that is not a virtual suit, a clip that cannot be read or mapped (EINVAL:
-// bad input); a body calibration that fails (EIO).
+// Errors: a board that is not a virtual suit, a clip that cannot be read or mapped or is too
+// short to score a single pose (EINVAL: bad input); a body calibration that fails (EIO).
 Result<EvaluateResult> evaluateClip(const board::Board& board, const EvaluateOptions& options);
 
 // The pipeline's facts, then the per-joint table and the root line.

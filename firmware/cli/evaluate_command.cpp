@@ -1,7 +1,8 @@
 // caphub evaluate: the body solver scored against the simulation's ground truth through the whole
 // path of `caphub run` on the virtual suit (chip models, drivers, bus workers, FusionStage,
 // BodyStage with its T-pose calibration): the per-joint error table of every clip. A
-// measurement, not a test: it exits 0 whatever the errors are.
+// measurement, not a test: it exits 0 whatever the errors are. A clip that gives not a single
+// scored pose is bad input (exit 2), never a table of zeros.
 #include <filesystem>
 #include <fstream>
 #include <vector>

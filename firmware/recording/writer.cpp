@@ -13,6 +13,30 @@ namespace caphub::firmware {
 
 using namespace cap;
 
+namespace {
+
+// A record's header (all but its payload and CRC) at r.
+void putRecordHeader(std::uint8_t* r, RecordType type, std::int64_t tNs, std::size_t payloadBytes) {
+    std::copy(kSync.begin(), kSync.end(), r);
+    r[4] = static_cast<std::uint8_t>(type);
+    r[5] = 0;
+    put16(r + 6, 0);
+    put32(r + 8, static_cast<std::uint32_t>(payloadBytes));
+    put64(r + 12, static_cast<std::uint64_t>(tNs));
+}
+
+// The CRC after the payload of the record at r, whose header is complete.
+void putRecordCrc(std::uint8_t* r) {
+    const std::size_t payload = get32(r + 8);
+    const std::uint32_t crc = crc32c(std::span(r + 4, kRecordHeaderBytes - 4 + payload));
+    put32(r + kRecordHeaderBytes + payload, crc);
+}
+
+// Why the writer stopped, in the stop event's text (the error itself is in its error field).
+constexpr std::string_view kStopText = "write error";
+
+}  // namespace
+
 Result<std::unique_ptr<RecordingWriter>> RecordingWriter::create(const std::string& path,
                                                                  std::string_view metadataToml,
                                                                  const WriterOptions& options) {
@@ -90,7 +114,8 @@ int RecordingWriter::writeAll(const std::uint8_t* data, std::size_t n) {
 
 WriterStats RecordingWriter::stats() const {
     WriterStats s;
-    s.records = records_;
+    s.records = writtenRecords_.load(std::memory_order_acquire);
+    s.acceptedRecords = records_;
     s.bytesWritten = bytesWritten_.load(std::memory_order_relaxed);
     s.syncs = syncs_.load(std::memory_order_relaxed);
     s.durableRecords = durableRecords_.load(std::memory_order_acquire);
@@ -111,22 +136,15 @@ std::uint8_t* RecordingWriter::begin(RecordType type, Timestamp t, std::size_t p
         }
     }
     std::uint8_t* r = active_->bytes.data() + active_->used;
-    std::copy(kSync.begin(), kSync.end(), r);
-    r[4] = static_cast<std::uint8_t>(type);
-    r[5] = 0;
-    put16(r + 6, 0);
-    put32(r + 8, static_cast<std::uint32_t>(payloadBytes));
-    put64(r + 12, static_cast<std::uint64_t>(toNs(t)));
+    putRecordHeader(r, type, toNs(t), payloadBytes);
     recordStart_ = active_->used;
     active_->used += total;
     return r + kRecordHeaderBytes;
 }
 
 int RecordingWriter::end() {
-    std::uint8_t* r = active_->bytes.data() + recordStart_;
-    const std::size_t payload = get32(r + 8);
-    const std::uint32_t crc = crc32c(std::span(r + 4, kRecordHeaderBytes - 4 + payload));
-    put32(r + kRecordHeaderBytes + payload, crc);
+    putRecordCrc(active_->bytes.data() + recordStart_);
+    active_->tailStarts[active_->records % kTailRecords] = static_cast<std::uint32_t>(recordStart_);
     ++active_->records;
     ++records_;
     if (clock_.now() - lastSync_ >= options_.syncInterval) {
@@ -161,27 +179,116 @@ int RecordingWriter::handOff(bool sync) {
     return error();
 }
 
+void RecordingWriter::rememberTail(std::uint64_t offset, std::int64_t tNs) {
+    if (tailCount_ == kTailRecords) {
+        std::move(tail_.begin() + 1, tail_.end(), tail_.begin());
+        --tailCount_;
+    }
+    tail_[tailCount_++] = {offset, tNs};
+}
+
 void RecordingWriter::writeOut(Buffer& b) {
     if (error() != 0) {
         return;  // the recording has stopped: later buffers are dropped
     }
     if (b.used > 0) {
+        const std::uint64_t base = bytesWritten_.load(std::memory_order_relaxed);
         if (int r = writeAll(b.bytes.data(), b.used); r < 0) {
-            // Stop cleanly: nothing more is written, what is on disk stays readable (a torn
-            // last record is skipped by the reader).
-            error_.store(r, std::memory_order_release);
+            stopAfterWriteError(b, base, r);
             return;
         }
-        writtenRecords_ += b.records;
+        const std::uint64_t first = b.records > kTailRecords ? b.records - kTailRecords : 0;
+        for (std::uint64_t k = first; k < b.records; ++k) {
+            const std::uint32_t start = b.tailStarts[k % kTailRecords];
+            rememberTail(base + start, static_cast<std::int64_t>(get64(&b.bytes[start + 12])));
+        }
+        writtenRecords_.fetch_add(b.records, std::memory_order_release);
     }
     if (b.sync) {
         if (::fdatasync(fd_.get()) < 0) {
+            // What the kernel holds may or may not be on the disk: the error is the news.
             error_.store(-errno, std::memory_order_release);
             return;
         }
         syncs_.fetch_add(1, std::memory_order_relaxed);
-        durableRecords_.store(writtenRecords_, std::memory_order_release);
+        durableRecords_.store(writtenRecords_.load(std::memory_order_relaxed),
+                              std::memory_order_release);
     }
+}
+
+void RecordingWriter::stopAfterWriteError(const Buffer& b, std::uint64_t base, int err) {
+    // The kernel took the first bytes of b (a partial write), then refused: b's records that
+    // fit whole are in the file, the next one is torn.
+    const std::uint64_t fileEnd = bytesWritten_.load(std::memory_order_relaxed);
+    const std::size_t taken = static_cast<std::size_t>(fileEnd - base);
+    std::size_t s = 0;
+    std::uint64_t complete = 0;
+    while (s < b.used) {
+        const std::size_t total = kRecordOverheadBytes + get32(&b.bytes[s + 8]);
+        if (s + total > taken) {
+            break;
+        }
+        rememberTail(base + s, static_cast<std::int64_t>(get64(&b.bytes[s + 12])));
+        ++complete;
+        s += total;
+    }
+    std::uint64_t written = writtenRecords_.load(std::memory_order_relaxed) + complete;
+    const std::uint64_t completeEnd = base + s;  // where the torn record starts
+
+    // The stop event, timed at the first record that is not in the file. The disk takes no new
+    // byte, but the bytes it took are the file's: the event overwrites the torn record and, if
+    // that is too short for it, the last complete records, which needs no new space (on a
+    // file system that writes in place), and the file is cut after it.
+    std::array<std::uint8_t, kMaxStopEventBytes> event{};
+    const std::size_t eventBytes = kRecordOverheadBytes + kEventFixedBytes + kStopText.size();
+    static_assert(kRecordOverheadBytes + kEventFixedBytes + kStopText.size() <= kMaxStopEventBytes);
+    std::uint64_t at = completeEnd;
+    std::int64_t tNs = static_cast<std::int64_t>(get64(&b.bytes[s + 12]));
+    std::uint64_t replaced = 0;
+    while (fileEnd - at < eventBytes && replaced < tailCount_) {
+        const TailRecord& r = tail_[tailCount_ - 1 - replaced];
+        at = r.offset;
+        tNs = r.tNs;
+        ++replaced;
+    }
+    if (fileEnd - at < eventBytes) {
+        // Too few records to make room (the disk was full from the start): try past them.
+        at = completeEnd;
+        tNs = static_cast<std::int64_t>(get64(&b.bytes[s + 12]));
+        replaced = 0;
+    }
+    putRecordHeader(event.data(), RecordType::Event, tNs, kEventFixedBytes + kStopText.size());
+    std::uint8_t* p = event.data() + kRecordHeaderBytes;
+    p[0] = static_cast<std::uint8_t>(EventKind::RecordingStopped);
+    put16(p + 2, static_cast<std::uint16_t>(-1));
+    put32(p + 4, static_cast<std::uint32_t>(err));
+    std::copy(kStopText.begin(), kStopText.end(), p + kEventFixedBytes);
+    putRecordCrc(event.data());
+
+    ssize_t put = -1;
+    do {
+        put = ::pwrite(fd_.get(), event.data(), eventBytes, static_cast<off_t>(at));
+    } while (put < 0 && errno == EINTR);
+    if (put == static_cast<ssize_t>(eventBytes)) {
+        written = written - replaced + 1;
+        (void)::ftruncate(fd_.get(), static_cast<off_t>(at + eventBytes));
+    } else if (put > 0) {
+        // Half an event over the records it was to replace: they are gone, so is the event.
+        written -= replaced;
+        (void)::ftruncate(fd_.get(), static_cast<off_t>(at));
+    } else {
+        // Nothing written: at least the torn record goes, so the file ends on a record.
+        (void)::ftruncate(fd_.get(), static_cast<off_t>(completeEnd));
+    }
+    writtenRecords_.store(written, std::memory_order_release);
+    if (::fdatasync(fd_.get()) == 0) {
+        syncs_.fetch_add(1, std::memory_order_relaxed);
+        durableRecords_.store(written, std::memory_order_release);
+    } else if (durableRecords_.load(std::memory_order_relaxed) > written) {
+        durableRecords_.store(written, std::memory_order_release);
+    }
+    // Last: a caller that sees the error sees the final counts.
+    error_.store(err, std::memory_order_release);
 }
 
 void RecordingWriter::ioLoop() {

@@ -3,8 +3,9 @@
 // passed, goes to the writer's own I/O thread, which writes it out and makes it durable
 // (fdatasync), so a power cut loses at most about that interval and the thread that records
 // never waits for the disk (unless every buffer is in flight: the disk is slower than the data).
-// A write error such as a full disk stops the recording cleanly: what was written stays
-// readable, and later calls report it.
+// A write error such as a full disk stops the recording cleanly: the file ends with a
+// "recording stopped" event in place of its last records (docs/recording-format.md), what was
+// written stays readable, and later calls report the error.
 #pragma once
 
 #include <array>
@@ -37,8 +38,12 @@ struct WriterOptions {
 inline constexpr int kWriterBuffers = 4;
 
 struct WriterStats {
+    // Complete records in the file (handed to the kernel whole; after a write error, without
+    // the torn one and those the stop event took the place of, with the stop event): what a
+    // reader reads back once the writer is closed.
     std::uint64_t records = 0;
-    std::uint64_t bytesWritten = 0;  // handed to the kernel
+    std::uint64_t acceptedRecords = 0;  // records the caller wrote, in the file or still queued
+    std::uint64_t bytesWritten = 0;     // handed to the kernel
     std::uint64_t syncs = 0;
     std::uint64_t durableRecords = 0;  // records covered by the last fdatasync
 };
@@ -74,17 +79,27 @@ public:
 
     // 0, or the -errno that stopped the recording (-ENOSPC: the disk is full).
     int error() const { return error_.load(std::memory_order_acquire); }
-    // A snapshot; records counts those written by the caller, the rest what reached the kernel
-    // and the disk.
+    // A snapshot: what reached the file and the disk, and what the caller handed over.
     WriterStats stats() const;
     const std::string& path() const { return path_; }
 
 private:
+    // Where the last few complete records start: after a write error the stop event takes the
+    // place of as many of them as it needs (every record is at least 24 bytes, the event at most
+    // kMaxStopEventBytes).
+    static constexpr std::size_t kTailRecords = 4;
+    static constexpr std::size_t kMaxStopEventBytes = 64;
+
     struct Buffer {
         std::vector<std::uint8_t> bytes;
         std::size_t used = 0;
         std::uint64_t records = 0;
+        std::array<std::uint32_t, kTailRecords> tailStarts{};  // ring, by records % kTailRecords
         bool sync = false;
+    };
+    struct TailRecord {
+        std::uint64_t offset = 0;  // in the file
+        std::int64_t tNs = 0;
     };
 
     RecordingWriter(std::string path, hal::UniqueFd fd, const WriterOptions& options);
@@ -99,6 +114,11 @@ private:
     int handOff(bool sync);
     void ioLoop();
     void writeOut(Buffer& b);
+    // After a write error while writing b from file offset base: counts b's complete records,
+    // puts the stop event in place of the torn record (and of as many complete ones before it as
+    // it needs) and cuts the file after it.
+    void stopAfterWriteError(const Buffer& b, std::uint64_t base, int err);
+    void rememberTail(std::uint64_t offset, std::int64_t tNs);
     int writeAll(const std::uint8_t* data, std::size_t n);
 
     std::string path_;
@@ -127,7 +147,9 @@ private:
     std::thread io_;
 
     // The I/O thread's side.
-    std::uint64_t writtenRecords_ = 0;
+    std::atomic<std::uint64_t> writtenRecords_{0};
+    std::array<TailRecord, kTailRecords> tail_{};  // the file's last complete records, oldest first
+    std::size_t tailCount_ = 0;
     std::atomic<std::uint64_t> bytesWritten_{0};
     std::atomic<std::uint64_t> syncs_{0};
     std::atomic<std::uint64_t> durableRecords_{0};

@@ -86,10 +86,19 @@ void RecorderStage::finish(Timestamp now) {
     if (take_) {
         event(now, cap::EventKind::TakeStopped, -1, 0, "the capture ended");
     }
-    if (writer_ != nullptr && !closed_) {
-        check(writer_->close());
-        closed_ = true;
+    closeFile(now, kEndOfCapture);
+}
+
+void RecorderStage::closeFile(Timestamp t, std::string_view why) {
+    if (writer_ == nullptr || closed_) {
+        return;
     }
+    // The last record of a recording that ran to its end: a reader tells it from one cut short
+    // (a crash, a power cut), which has none, and from one a write error stopped, whose stop
+    // event carries the error.
+    event(t, cap::EventKind::RecordingStopped, -1, 0, why);
+    check(writer_->close());
+    closed_ = true;
 }
 
 void RecorderStage::orientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) {
@@ -141,6 +150,7 @@ std::unique_ptr<RecordingWriter> RecorderStage::endTake(Timestamp t) {
         return nullptr;
     }
     event(t, cap::EventKind::TakeStopped, -1, 0, "");
+    event(t, cap::EventKind::RecordingStopped, -1, 0, "take stopped");
     take_ = false;
     // Hand what is buffered to the writer's I/O thread now; the caller's close() syncs it.
     check(writer_->maybeSync());

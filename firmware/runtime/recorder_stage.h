@@ -2,17 +2,21 @@
 // writer's sync interval, and what the other stages compute (orientations, poses, calibration)
 // through its RecordSink side: the only writer of records. A capture records one file from start
 // to end (`caphub run --record`), or takes: each its own file, begun and ended by commands while
-// the capture runs; between takes nothing is written. A write error (full disk) stops the take,
-// not the capture.
+// the capture runs; between takes nothing is written. Every file ends with a "recording stopped"
+// event. A write error (full disk) stops the take, not the capture.
 #pragma once
 
 #include <memory>
+#include <string_view>
 
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/record_sink.h"
 
 namespace caphub::firmware {
+
+// The text of the "recording stopped" event that ends a recording at the end of the capture.
+inline constexpr std::string_view kEndOfCapture = "end of capture";
 
 class RecorderStage final : public PipelineStage, public RecordSink {
 public:
@@ -55,6 +59,8 @@ public:
 
 private:
     bool writable() const { return writer_ != nullptr && !closed_ && writer_->error() == 0; }
+    // Ends the file with a "recording stopped" event and closes it.
+    void closeFile(Timestamp t, std::string_view why);
     void check(int r);
 
     std::unique_ptr<RecordingWriter> writer_;

@@ -52,10 +52,10 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     ++sum_.frames;
 }
 
-PoseScore PoseScorer::score() const {
+std::optional<PoseScore> PoseScorer::score() const {
     PoseScore s = sum_;
     if (s.frames == 0) {
-        return s;
+        return std::nullopt;
     }
     s.meanAngleDeg = 0;
     s.meanPositionM = 0;

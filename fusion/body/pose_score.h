@@ -62,8 +62,9 @@ public:
     explicit PoseScorer(RootOrigin origin = RootOrigin::Absolute) : origin_(origin) {}
 
     void add(const Pose& solved, const BodyTruth& truth);
-    // The means over the frames added so far.
-    PoseScore score() const;
+    // The means over the frames added so far; none before the first frame: a mean over nothing
+    // is no score, and must not read as a perfect 0.
+    std::optional<PoseScore> score() const;
 
 private:
     RootOrigin origin_;

@@ -305,6 +305,124 @@ TEST(BoardLoader, MountingFromEulerAnglesAndQuaternions) {
                    "not a unit quaternion");
 }
 
+// A glitched or hostile board file must not put a non-finite or absurd number into the capture:
+// each array element is checked, and the error points at the element itself.
+TEST(BoardLoader, RejectsNonFiniteOrOutOfRangeMountingAndPosition) {
+    struct Case {
+        std::string line, key, element, message;
+    };
+    const Case cases[] = {
+        {"mounting_euler_deg = [nan, 180, 0]", "mounting_euler_deg", "nan",
+         "element 0 is nan, not a finite number"},
+        {"mounting_euler_deg = [0, inf, 0]", "mounting_euler_deg", "inf",
+         "element 1 is inf, not a finite number"},
+        {"mounting_euler_deg = [0, 0, -inf]", "mounting_euler_deg", "-inf",
+         "element 2 is -inf, not a finite number"},
+        {"mounting_euler_deg = [1e308, 0, 0]", "mounting_euler_deg", "1e308",
+         "element 0 is 1e+308, out of range"},
+        {"mounting_euler_deg = [0, 360.5, 0]", "mounting_euler_deg", "360.5",
+         "element 1 is 360.5, out of range"},
+        {"mounting_quat = [nan, 0, 0, 0]", "mounting_quat", "nan",
+         "element 0 is nan, not a finite number"},
+        {"mounting_quat = [1, 0, 0, inf]", "mounting_quat", "inf",
+         "element 3 is inf, not a finite number"},
+        {"mounting_quat = [1e308, 1e308, 0, 0]", "mounting_quat", "1e308",
+         "element 0 is 1e+308, out of range"},
+        {"mounting_quat = [0, 0, 0, 0]", "mounting_quat", "[0", "not a unit quaternion"},
+        {"position_m = [nan, 0.05, 0]", "position_m", "nan",
+         "element 0 is nan, not a finite number"},
+        {"position_m = [0, 0.05, -inf]", "position_m", "-inf",
+         "element 2 is -inf, not a finite number"},
+        {"position_m = [0, 1e308, 0]", "position_m", "1e308", "element 1 is 1e+308, out of range"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.line);
+        const std::string text = kHeader + sensor("a", "pelvis", 0, 0x68, c.line + "\n");
+        const auto r = load(text);
+        expectOneError(r, "sensor[0]." + c.key, lineOf(text, c.line), c.message);
+        if (r.errors.size() != 1) {
+            continue;  // reported above
+        }
+        const auto lineStart = text.find(c.line);
+        const auto column = static_cast<int>(text.find(c.element, lineStart) - lineStart) + 1;
+        EXPECT_EQ(r.errors[0].where.column, column) << r.errors[0].str();
+    }
+}
+
+TEST(BoardLoader, AcceptsMountingAndPositionAtTheEdgesOfTheirRanges) {
+    const auto r = load(kHeader + sensor("a", "pelvis", 0, 0x68,
+                                         "mounting_euler_deg = [-360, 360, 359.5]\n"
+                                         "position_m = [-1, 1, 0.0]\n"));
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_EQ(r.board->sensors[0].positionM, Vec3d(-1, 1, 0));
+}
+
+// Every single number the loader reads goes through the same check: nan and inf are named as
+// such, not reported as a range the reader then has to puzzle over.
+TEST(BoardLoader, RejectsANonFiniteNumberWhereverItIs) {
+    struct Case {
+        std::string from, to, key;
+    };
+    const std::string base =
+        R"(schema = 1
+name = "test"
+
+[subject]
+height_m = 1.8
+mass_kg = 80
+[subject.segment_lengths_m]
+l_upperarm = 0.31
+
+[[bus]]
+name = "i2c1"
+type = "i2c"
+device = "/dev/i2c-1"
+clock_hz = 400000
+
+[[sensor]]
+name = "a"
+segment = "pelvis"
+chip = "icm20948"
+bus = "i2c1"
+address = 0x68
+odr_hz = 100
+mag_odr_hz = 100
+accel_range_g = 16
+gyro_range_dps = 2000
+
+[display]
+type = "none"
+fps = 30
+)";
+    ASSERT_TRUE(load(base).ok()) << load(base).errors[0].str();
+    const Case cases[] = {
+        {"height_m = 1.8", "height_m = nan", "subject.height_m"},
+        {"mass_kg = 80", "mass_kg = inf", "subject.mass_kg"},
+        {"l_upperarm = 0.31", "l_upperarm = -nan", "subject.segment_lengths_m.l_upperarm"},
+        {"clock_hz = 400000", "clock_hz = inf", "bus[0].clock_hz"},
+        {"odr_hz = 100", "odr_hz = nan", "sensor[0].odr_hz"},
+        {"mag_odr_hz = 100", "mag_odr_hz = +inf", "sensor[0].mag_odr_hz"},
+        {"accel_range_g = 16", "accel_range_g = nan", "sensor[0].accel_range_g"},
+        {"gyro_range_dps = 2000", "gyro_range_dps = inf", "sensor[0].gyro_range_dps"},
+        {"fps = 30", "fps = nan", "display.fps"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.to);
+        std::string text = base;
+        text.replace(text.find(c.from), c.from.size(), c.to);
+        const auto r = load(text);
+        EXPECT_FALSE(r.ok());
+        if (r.errors.empty()) {
+            continue;
+        }
+        // A missing clock or rate may add follow-on errors; the first is the number itself.
+        const Diagnostic& d = r.errors[0];
+        EXPECT_EQ(d.key, c.key) << d.str();
+        EXPECT_EQ(d.where.line, lineOf(text, c.to)) << d.str();
+        EXPECT_THAT(d.message, HasSubstr("not a finite number")) << d.str();
+    }
+}
+
 TEST(BoardLoader, ReportsEveryMistakeNotJustTheFirst) {
     std::string text =
         kHeader + sensor("a", "tail", 0, 0x68, "drdy = \"gpio4\"\n") + sensor("b", "t12", 0, 0x69);

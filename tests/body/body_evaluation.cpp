@@ -97,8 +97,12 @@ Result<ClipScore> scoreClip(const std::filesystem::path& bvh, const std::filesys
         }
         scorer.add(solver.solve(f, dt), t);
     }
+    const auto scored = scorer.score();
+    if (!scored) {
+        return Error{EINVAL, bvh.string() + ": the clip is too short to score a single pose"};
+    }
     ClipScore score;
-    static_cast<PoseScore&>(score) = scorer.score();
+    static_cast<PoseScore&>(score) = *scored;
     score.clip = bvh.filename().string();
     score.rateHz = rateHz;
     score.speed = speed;

@@ -38,6 +38,17 @@ std::array<Quatd, kSegmentCount> reference() {
     return q;
 }
 
+TEST(PoseScore, NoFrameIsNoScoreNotAPerfectOne) {
+    const PoseScorer empty;
+    EXPECT_FALSE(empty.score().has_value());
+    PoseScorer one;
+    auto solvedLocal = reference();
+    solvedLocal[idx(S::LForearm)] = rotX(10);
+    one.add(poseFrom(solvedLocal), truthOf(poseFrom(reference())));
+    ASSERT_TRUE(one.score());
+    EXPECT_EQ(one.score()->frames, 1);
+}
+
 TEST(PoseScore, TheLumbarJointScoresTheWholeRotationNotItsSplit) {
     // The truth bends l5 13 deg forward and t12 16 deg back; the solver splits the same
     // -3 deg evenly. The two spine rows of the 21 are off by about 14.5 deg, the paper's
@@ -50,7 +61,8 @@ TEST(PoseScore, TheLumbarJointScoresTheWholeRotationNotItsSplit) {
     solvedLocal[idx(S::T12)] = rotX(-1.5);
     PoseScorer scorer;
     scorer.add(poseFrom(solvedLocal), truthOf(poseFrom(trueLocal)));
-    const PoseScore s = scorer.score();
+    ASSERT_TRUE(scorer.score());
+    const PoseScore s = *scorer.score();
 
     EXPECT_NEAR(s.angleDeg[idx(S::L5)], 14.5, 1e-6);
     EXPECT_NEAR(s.angleDeg[idx(S::T12)], 14.5, 1e-6);
@@ -71,7 +83,8 @@ TEST(PoseScore, AnElbowErrorCountsOnceInEachTable) {
     solvedLocal[idx(S::LForearm)] = rotX(34);
     PoseScorer scorer;
     scorer.add(poseFrom(solvedLocal), truthOf(poseFrom(trueLocal)));
-    const PoseScore s = scorer.score();
+    ASSERT_TRUE(scorer.score());
+    const PoseScore s = *scorer.score();
     EXPECT_NEAR(s.meanAngleDeg, 6.0 / kSegmentCount, 1e-6);
     EXPECT_NEAR(s.independentMeanAngleDeg, 6.0 / kIndependentJointCount, 1e-6);
     EXPECT_NEAR(s.independentPositionM[0], 0, 1e-12);  // the root

@@ -186,6 +186,41 @@ TEST(Cli, RunRefusesABadBoardWithExitCode2) {
     EXPECT_EQ(caphub("run --board " + path + " --duration 1").exitCode, 2);
 }
 
+TEST(Cli, AFullDiskStopsTheRecordingAndTheReportCountsWhatTheFileHolds) {
+    // A file size limit stands in for a full disk (write() takes what fits, then fails); the
+    // recording of 3 s of the 17-sensor suit is about 650 kB, the limit well below it.
+    const std::string path =
+        ::testing::TempDir() + "caphub-cli-full-" + std::to_string(getpid()) + ".cap";
+    std::filesystem::remove(path);
+    const CliRun r = shell("trap '' XFSZ; ulimit -f 300; exec " + std::string(CAPHUB_BINARY) +
+                           " run --duration 3 --speed 4 --no-preview --record " + path);
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("stopped early: File too large")) << r.output;
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(\((\d+) records, )"))) << r.output;
+    const long reported = std::stol(m[1]);
+
+    const CliRun info = caphub("info " + path);
+    ASSERT_EQ(info.exitCode, 0) << info.output;
+    const auto from = info.output.find("records:\n");
+    ASSERT_NE(from, std::string::npos) << info.output;
+    std::istringstream lines(info.output.substr(from + 9, info.output.find("\n\n", from) - from));
+    long inFile = 0;
+    std::string line;
+    while (std::getline(lines, line)) {
+        if (std::regex_search(line, m, std::regex(R"(^  [a-z ]+?\s+(\d+)$)"))) {
+            inFile += std::stol(m[1]);
+        }
+    }
+    EXPECT_GT(inFile, 1000);
+    EXPECT_EQ(reported, inFile) << r.output << info.output;
+    EXPECT_THAT(info.output,
+                HasSubstr("recording stopped  sensor -1 (File too large): write error"));
+    EXPECT_THAT(info.output, HasSubstr("torn tail: 0 bytes"));
+    EXPECT_THAT(info.output, HasSubstr("damage: none"));
+    std::filesystem::remove(path);
+}
+
 TEST(Cli, InfoOfANonRecordingIsAUsageError) {
     const std::string path = writeTemp("not-a-recording.cap", "hello, this is not a recording");
     const CliRun r = caphub("info " + path);

@@ -198,6 +198,26 @@ std::string jumpClip() {
     return out;
 }
 
+// The walk's first `frames` frames (120 Hz) as a clip of its own in the temporary folder.
+fs::path walkCut(int frames) {
+    std::ifstream in(kWalk);
+    const fs::path out =
+        fs::temp_directory_path() / fmt::format("caphub_evaluate_cut{}.bvh", frames);
+    std::ofstream cut(out, std::ios::trunc);
+    std::string line;
+    while (std::getline(in, line) && line.find("MOTION") == std::string::npos) {
+        cut << line << "\n";
+    }
+    std::getline(in, line);  // Frames:
+    cut << "MOTION\nFrames: " << frames << "\n";
+    std::getline(in, line);  // Frame Time:
+    cut << line << "\n";
+    for (int f = 0; f < frames && std::getline(in, line); ++f) {
+        cut << line << "\n";
+    }
+    return out;
+}
+
 TEST(EvaluateThroughTheFilter, IdealSensorsComeCloseToTheIdealOrientationEvaluation) {
     const board::Board b = simSuit();
     auto real = firmware::evaluateClip(b, idealOptions(0));
@@ -361,6 +381,20 @@ TEST(EvaluateThroughTheFilter, RejectsAMalformedClipWithItsFileAndLine) {
         << r.error().message;
 }
 
+TEST(EvaluateThroughTheFilter, AClipTooShortToScoreIsAnErrorNotAPerfectScore) {
+    // Two frames are 8 ms of motion after the lead-in: no pose of the 60 Hz grid falls in them.
+    const board::Board b = simSuit();
+    firmware::EvaluateOptions o = idealOptions(0);
+    o.bvh = walkCut(2);
+    auto r = firmware::evaluateClip(b, o);
+    fs::remove(o.bvh);
+    ASSERT_FALSE(r) << "scored " << r->score.frames << " poses, mean " << r->score.meanAngleDeg;
+    EXPECT_EQ(r.error().code, EINVAL);
+    EXPECT_NE(r.error().message.find("caphub_evaluate_cut2.bvh' is too short to score"),
+              std::string::npos)
+        << r.error().message;
+}
+
 TEST(EvaluateCli, PrintsThePipelineFactsAndThePerJointTable) {
     const fs::path json = fs::temp_directory_path() / "caphub_evaluate_test.json";
     const auto r = caphub::testing::caphub("evaluate --profile ideal --bvh " + kWalk.string() +
@@ -392,6 +426,15 @@ TEST(EvaluateCli, RejectsAMissingClipWithExitCode2) {
     EXPECT_EQ(r.exitCode, 2) << r.output;
     EXPECT_NE(r.output.find("'/nonexistent/walk.bvh': no such file"), std::string::npos)
         << r.output;
+}
+
+TEST(EvaluateCli, RejectsAClipTooShortToScoreWithExitCode2AndNoTable) {
+    const fs::path clip = walkCut(2);
+    const auto r = caphub::testing::caphub("evaluate --profile ideal --bvh " + clip.string());
+    fs::remove(clip);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find("is too short to score"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("| **mean** |"), std::string::npos) << r.output;
 }
 
 TEST(EvaluateCli, RejectsAnUnknownBoardWithExitCode2) {

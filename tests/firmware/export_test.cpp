@@ -413,9 +413,10 @@ TEST(ExportFrames, DamagedRecordExportsTheRestAndCountsWhatWasSkipped) {
     const std::string rec = temp("damaged.cap");
     const auto poses = writeWalkRecording(rec);
     std::string bytes = readText(rec);
-    // Pose records are 20 + 16 + 16 * 21 + 4 = 376 bytes after the header: flip one byte in
-    // the payload of poses 50 and 51, and break the sync marker of pose 200.
-    constexpr std::size_t kRecord = 376;
+    // Pose records are 20 + 16 + 16 * 21 + 4 (the not-measured mask) + 4 = 380 bytes after the
+    // header: flip one byte in the payload of poses 50 and 51, and break the sync marker of pose
+    // 200.
+    constexpr std::size_t kRecord = 380;
     const std::size_t first = bytes.size() - poses.size() * kRecord;
     bytes[first + 50 * kRecord + 100] ^= 0x5a;
     bytes[first + 51 * kRecord + 30] ^= 0x01;

@@ -350,6 +350,103 @@ TEST(Recording, AFullDiskStopsTheRecordingCleanly) {
     EXPECT_TRUE(rb.damage.empty());
 }
 
+// A recording that runs into a file size limit (a full disk, the same way: write() takes what
+// fits, then fails) in a child process: the file and what the writer reported after close().
+struct FullDiskRun {
+    std::string path;
+    std::uint64_t records = 0;  // WriterStats::records
+    int error = 0;
+};
+
+FullDiskRun recordUntilFull(const std::string& name, rlim_t limitBytes) {
+    FullDiskRun out;
+    out.path = tempPath(name);
+    int pipeFds[2];
+    if (::pipe(pipeFds) != 0) {
+        ADD_FAILURE() << "pipe";
+        return out;
+    }
+    const pid_t child = ::fork();
+    if (child == 0) {
+        ::close(pipeFds[0]);
+        ::signal(SIGXFSZ, SIG_IGN);
+        rlimit lim{limitBytes, limitBytes};
+        ::setrlimit(RLIMIT_FSIZE, &lim);
+        auto w = RecordingWriter::create(out.path, "");
+        if (!w.ok()) {
+            ::_exit(10);
+        }
+        int r = 0;
+        for (int i = 0; i < 100'000 && r == 0; ++i) {
+            r = (*w)->writeRawSample(0, sample(i));
+        }
+        (void)(*w)->close();
+        const std::uint64_t report[2] = {(*w)->stats().records,
+                                         static_cast<std::uint64_t>(-(*w)->error())};
+        ::_exit(::write(pipeFds[1], report, sizeof report) == sizeof report ? 0 : 11);
+    }
+    ::close(pipeFds[1]);
+    std::uint64_t report[2] = {0, 0};
+    const bool got = ::read(pipeFds[0], report, sizeof report) == sizeof report;
+    ::close(pipeFds[0]);
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    EXPECT_TRUE(got && WIFEXITED(status) && WEXITSTATUS(status) == 0) << name;
+    out.records = report[0];
+    out.error = -static_cast<int>(report[1]);
+    return out;
+}
+
+// The limits put the end of the file 64, 34 and 0 bytes into a 68-byte record (after the
+// 20-byte header): the stop event (43 bytes) fits in the torn record, or takes the place of the
+// last complete one.
+constexpr rlim_t kFullDiskLimits[] = {20 + 587 * 68 + 64, 20 + 587 * 68 + 34, 20 + 588 * 68};
+
+TEST(Recording, AfterAFullDiskTheRecordCountIsWhatTheFileHolds) {
+    for (const rlim_t limit : kFullDiskLimits) {
+        const FullDiskRun run = recordUntilFull("count-" + std::to_string(limit), limit);
+        ASSERT_EQ(run.error, -EFBIG) << limit;
+        const ReadBack rb = readBack(run.path);
+        EXPECT_GT(rb.seqs.size(), 500u) << limit;
+        EXPECT_EQ(run.records, rb.seqs.size() + static_cast<std::size_t>(rb.otherRecords))
+            << "limit " << limit;
+    }
+}
+
+TEST(Recording, AFullDiskEndsTheFileWithARecordingStoppedEvent) {
+    for (const rlim_t limit : kFullDiskLimits) {
+        const FullDiskRun run = recordUntilFull("stop-" + std::to_string(limit), limit);
+        const ReadBack rb = readBack(run.path);
+        EXPECT_TRUE(rb.damage.empty()) << limit;
+        EXPECT_EQ(rb.tornTail, 0u) << limit;  // the event took the torn record's place
+        EXPECT_LE(std::filesystem::file_size(run.path), limit);
+        for (std::size_t i = 0; i < rb.seqs.size(); ++i) {
+            ASSERT_EQ(rb.seqs[i], static_cast<int>(i)) << limit;
+        }
+        auto r = RecordingReader::open(run.path);
+        ASSERT_TRUE(r.ok());
+        RecordView v;
+        RecordView last;
+        std::vector<std::uint8_t> lastPayload;
+        while ((*r)->next(v) == 1) {
+            last = v;
+            lastPayload.assign(v.payload.begin(), v.payload.end());
+        }
+        last.payload = lastPayload;
+        cap::EventKind kind{};
+        int sensor = 0;
+        int err = 0;
+        std::string text;
+        ASSERT_TRUE(decodeEvent(last, kind, sensor, err, text)) << "limit " << limit;
+        EXPECT_EQ(kind, cap::EventKind::RecordingStopped);
+        EXPECT_EQ(sensor, -1);
+        EXPECT_EQ(err, -EFBIG);
+        EXPECT_EQ(text, "write error");
+        // Timed at the first sample that is not in the file: the data ends there.
+        EXPECT_EQ(last.t, sample(static_cast<int>(rb.seqs.size())).t) << limit;
+    }
+}
+
 // kill -9 of a recording process at random moments: every record up to the last durable point
 // reads back, in order, and nothing else appears.
 TEST(Recording, KillNineAtTwentyRandomMomentsLosesNothingDurable) {
