@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "board/segment.h"
+#include "board/subject.h"
 #include "hal/chip_info.h"
 #include "hal/core/quaternion.h"
 
@@ -94,13 +95,6 @@ struct RuntimeConfig {
     // CPUs the capture threads may run on (empty: any).
     std::vector<int> cpus;
     SourceLocation where;
-};
-
-struct SubjectConfig {
-    double heightM = 1.75;
-    std::optional<double> massKg;
-    // Measured segment lengths, overriding those derived from the height.
-    std::vector<std::pair<Segment, double>> segmentLengthsM;
 };
 
 struct Board {

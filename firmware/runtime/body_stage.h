@@ -1,20 +1,19 @@
-// The pipeline stage that drives the body: optionally a calibration in a reference pose at the
-// start of the capture (the subject stands still in it while the filters settle), then the body
-// solver at the output rate on the latest sensor orientations, one pose record per frame.
+// The pipeline stage that drives the body: an adapter that feeds the body tracker
+// (fusion/body/body_tracker.h) each sensor's orientation from the fusion stage, asks it for the
+// poses the grid has due, hands the filters the body's acceleration it returns, and writes pose
+// records, calibration events and metadata. Optionally a calibration in a reference pose at the
+// start of the capture (the subject stands still in it while the filters settle).
 #pragma once
 
-#include <array>
 #include <optional>
-#include <vector>
+#include <string>
 
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/latency_window.h"
 #include "firmware/runtime/record_sink.h"
-#include "fusion/body/body_calibration.h"
-#include "fusion/body/body_solver.h"
-#include "fusion/body/foot_inertial.h"
+#include "fusion/body/body_tracker.h"
 
 namespace caphub::firmware {
 
@@ -41,82 +40,47 @@ public:
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations,
-    // and hands it back the body's acceleration: FusionStage::setBodyAcceleration); records
-    // may be null.
+    // and hands it back the body's acceleration: FusionStage::setBodyAcceleration); records may
+    // be null.
     BodyStage(const board::Board& board, FusionStage& fusion, RecordSink* records, Clock& clock,
               const Options& options);
 
     void onSample(const SensorSample& s) override;
+    // Lost or silent: the sensor's segment is invalid until it reports again; reset: what was
+    // held of it is stale.
     void onEvent(const RuntimeEvent& e) override;
 
-    bool calibrated() const { return calibrated_; }
-    const body::BodyCalibration& calibration() const { return calibration_; }
+    bool calibrated() const { return tracker_.calibrated(); }
+    const body::BodyCalibration& calibration() const { return tracker_.calibration(); }
     // Why a requested calibration failed (empty when it did not).
-    const std::string& calibrationError() const { return calibrationError_; }
-    std::uint64_t poses() const { return poses_; }
-    const body::Pose& pose() const { return solver_.pose(); }
+    const std::string& calibrationError() const { return tracker_.calibrationError(); }
+    std::uint64_t poses() const { return tracker_.poses(); }
+    const body::Pose& pose() const { return tracker_.pose(); }
     // When the latest pose was solved for (its grid point), and the solver (its root tracker).
-    Timestamp poseTime() const { return lastFrame_; }
-    const body::BodySolver& solver() const { return solver_; }
+    Timestamp poseTime() const { return tracker_.latest().t; }
+    const body::BodySolver& solver() const { return tracker_.solver(); }
+    // The tracker: the latest pose's valid segments, the calibration status, and requests (a
+    // calibration, a heading reset) on the pipeline thread.
+    body::BodyTracker& tracker() { return tracker_; }
+    const body::BodyTracker& tracker() const { return tracker_; }
     // Per pose, the time from the newest sample's data-ready edge to the pose being written, on
     // the capture clock as the pipeline saw it: percentiles (0..1) over the last 65536 poses
     // (18 min at 60 Hz).
     Duration latencyPercentile(double p) const { return latency_.percentile(p); }
 
 private:
-    void calibrate(Timestamp t);
-    void solveFrame(Timestamp t, Timestamp newestSample);
-    // A sensor's orientation at t: between its two latest samples, or carried on past the latest
-    // at its gyroscope's rate for at most one sample interval. False when it has none.
-    bool orientationAt(int sensor, Timestamp t, Eigen::Quaternionf& q) const;
-    // The body's horizontal acceleration from the root's tracked velocity, to the filters.
-    void feedBackAcceleration(double dtS);
+    void record(Timestamp t, const body::TrackerEvents& events);
 
-    const board::Board& board_;
     FusionStage& fusion_;
     RecordSink* records_;
     Clock& clock_;
     Options options_;
-    Duration period_;
-    body::BodySolver solver_;
-    body::SegmentMask mask_ = 0;
-    std::array<Quatd, body::kSegmentCount> nominal_;
-    std::vector<int> sensorOfSegment_;  // segment -> board sensor, -1 when none
-    // Per sensor its two latest orientations and their sample times. Poses are solved on a fixed
-    // grid that the sensors' samples do not fall on (60 Hz poses from 100 Hz sensors): taken as
-    // they are, the orientations would be 0-10 ms old in a repeating pattern, and the joint
-    // rates (the foot contacts' velocities) would swing by tens of percent from pose to pose.
-    struct HeldOrientation {
-        Eigen::Quaternionf previous = Eigen::Quaternionf::Identity();
-        Eigen::Quaternionf latest = Eigen::Quaternionf::Identity();
-        Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();  // the latest gyro, sensor frame
-        Timestamp previousT{};
-        Timestamp latestT{};
-        int count = 0;  // orientations held: 0, 1 or 2
-    };
-    std::vector<HeldOrientation> held_;
-    int pelvisSensor_ = -1;
-    // The feet's sensors (board indices, -1 when none) and their dead reckoning.
-    std::array<int, 2> footSensor_{-1, -1};
-    std::array<body::FootInertial, 2> footInertial_;
-    // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
-    // their mean goes to the skeleton world frame once per pose.
-    Vec3d pelvisForceSumEnu_ = Vec3d::Zero();
-    int pelvisForceCount_ = 0;
-    body::BodyCalibration calibration_;
-    bool calibrated_ = false;
-    std::string calibrationError_;
-    std::optional<Timestamp> first_;
-    Timestamp nextFrame_{};
-    Timestamp lastFrame_{};
-    // The calibration average: per sensor the sum of sign-aligned quaternions.
-    std::vector<Eigen::Vector4d> sum_;
-    std::vector<int> count_;
-    std::uint64_t poses_ = 0;
-    Vec3d rootVelocityLp_ = Vec3d::Zero();  // m/s, skeleton world, horizontal
-    bool rootVelocityValid_ = false;
+    body::BodyTracker tracker_;
+    bool started_ = false;
     LatencyWindow latency_{1 << 16};
+    static constexpr std::uint32_t kAllJoints = (1u << body::kSegmentCount) - 1;
     std::array<Eigen::Quaternionf, body::kSegmentCount> joints_{};
+    std::array<bool, body::kSegmentCount> jointSeen_{};  // measured at least once
 };
 
 }  // namespace caphub::firmware

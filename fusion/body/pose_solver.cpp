@@ -119,6 +119,38 @@ void PoseSolver::solve(const SensorFrame& frame, Pose& pose, JointLimitReport* r
     }
 }
 
+SegmentMask PoseSolver::validSegments(SegmentMask present) const {
+    SegmentMask valid = 0;
+    const auto mark = [&valid](int i, bool v) {
+        if (v) {
+            valid |= SegmentMask{1} << i;
+        }
+    };
+    // The root: its own sensor, the spine segment it follows, or (no spine sensor at all) the
+    // fixed upright orientation, which no missing sensor affects.
+    if (rules_[0] == SegmentRule::Sensor) {
+        mark(0, has(present, 0));
+    } else {
+        mark(0, rootSource_ < 0 || has(present, rootSource_));
+    }
+    // Parents come first, so a follower's parent is decided before it.
+    for (int i = 1; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        switch (rules_[u]) {
+            case SegmentRule::Sensor:
+                mark(i, has(present, i));
+                break;
+            case SegmentRule::FollowParent:
+                mark(i, has(valid, parentOf(i)));
+                break;
+            case SegmentRule::SpineShare:
+                mark(i, has(present, shares_[u].from) && has(present, shares_[u].to));
+                break;
+        }
+    }
+    return valid;
+}
+
 double applyJointLimits(const JointLimits& limits, Quatd& qLocal, bool clamp) {
     const Vec3d rvDeg = logUnit(qLocal.normalized()) * kRadToDeg;
     const Vec3d clamped = rvDeg.cwiseMax(limits.minDeg).cwiseMin(limits.maxDeg);

@@ -38,6 +38,11 @@ public:
     // Fills qWorld and qLocal (not positions). Sensors outside the mask are ignored. With a
     // report, joint limits are checked (and applied when clampToLimits).
     void solve(const SensorFrame& frame, Pose& pose, JointLimitReport* report = nullptr) const;
+    // The segments whose solved orientation rests only on sensors in `present` (those with an
+    // orientation in the frame): a sensor's own segment when it is present, a spine share when
+    // both its ends are, a follower when what it follows is. A segment of a missing sensor is
+    // still solved (from the identity orientation), so this is what tells it apart.
+    SegmentMask validSegments(SegmentMask present) const;
 
 private:
     struct Share {

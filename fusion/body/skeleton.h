@@ -8,8 +8,8 @@
 #include <string_view>
 #include <vector>
 
-#include "board/board.h"
 #include "board/segment.h"
+#include "board/subject.h"
 #include "hal/core/error.h"
 #include "hal/core/quaternion.h"
 

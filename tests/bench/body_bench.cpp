@@ -1,7 +1,8 @@
 // The full-body solve per frame on the 17-sensor suit: orientations and joint rotations with
 // limit checks, FK, joint rates, the five end-effector Jacobians and twists, foot contacts and
 // root translation with the pelvis accelerometer and the feet's dead reckoning as the firmware
-// passes them (BodySolver::solve).
+// passes them (BodySolver::solve); and the body tracker the runtime feeds (BodyTracker: per
+// sensor update, with the 60 Hz poses it solves from the 100 Hz samples).
 #include <cmath>
 #include <random>
 #include <vector>
@@ -9,6 +10,7 @@
 #include <benchmark/benchmark.h>
 
 #include "fusion/body/body_solver.h"
+#include "fusion/body/body_tracker.h"
 
 namespace {
 
@@ -80,5 +82,46 @@ void BM_FullBodySolve(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_FullBodySolve);
+
+// What the runtime's body stage costs per sample: 17 sensors at 100 Hz through the tracker
+// (holding, the feet's dead reckoning, the pelvis force) and the 60 Hz poses it solves, with
+// the aiding acceleration; items are sensor updates.
+void BM_BodyTrackerPerUpdate(benchmark::State& state) {
+    board::SubjectConfig subject;
+    const Skeleton skeleton(*dimensionsFromSubject(subject));
+    std::vector<TrackedSensor> sensors;
+    std::array<Quatd, kSegmentCount> mounting;
+    mounting.fill(Quatd::Identity());
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (has(kFullSuit, i)) {
+            sensors.push_back({static_cast<Segment>(i), Quatd::Identity(), Vec3d(0, 0.03, 0.06)});
+        }
+    }
+    const auto frames = makeFrames(mounting);
+    BodyTracker tracker(skeleton, sensors);
+    const Duration sample = std::chrono::milliseconds(10);
+    Timestamp t{};
+    std::size_t k = 0;
+    for (auto _ : state) {
+        const SensorFrame& f = frames[k];
+        for (std::size_t i = 0; i < sensors.size(); ++i) {
+            SensorUpdate u;
+            u.sensor = static_cast<int>(i);
+            u.t = t;
+            u.qEnuSensor =
+                f.qEnuSensor[static_cast<std::size_t>(idx(sensors[i].segment))].cast<float>();
+            u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0.1f, 0.2f, 9.8f);
+            u.rateRadS = Eigen::Vector3f(0.5f, -0.2f, 0.1f);
+            benchmark::DoNotOptimize(tracker.update(u));
+        }
+        while (const auto g = tracker.due(t)) {
+            benchmark::DoNotOptimize(tracker.solveAt(*g).aidEnuMps2);
+        }
+        t += sample;
+        k = (k + 1) % frames.size();
+    }
+    state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(sensors.size()));
+}
+BENCHMARK(BM_BodyTrackerPerUpdate);
 
 }  // namespace

@@ -272,14 +272,16 @@ namespace {
 class PoseLog final : public firmware::RecordSink {
 public:
     void orientation(int, Timestamp, const Eigen::Quaternionf&) override {}
-    void pose(Timestamp t, const Eigen::Vector3f&, std::span<const Eigen::Quaternionf>,
+    void pose(Timestamp t, const Eigen::Vector3f&, std::span<const Eigen::Quaternionf> joints,
               std::uint32_t notMeasured) override {
         poses.emplace_back(t, notMeasured);
+        rotations.emplace_back(joints.begin(), joints.end());
     }
     void event(Timestamp, firmware::cap::EventKind, int, int, std::string_view) override {}
     void metadata(Timestamp, std::string_view) override {}
     void marker(Timestamp, std::string_view) override {}
     std::vector<std::pair<Timestamp, std::uint32_t>> poses;
+    std::vector<std::vector<Eigen::Quaternionf>> rotations;
 };
 
 // The whole lifecycle through the bus worker, fusion and body: a sensor whose data-ready line
@@ -358,6 +360,13 @@ TEST(BodyStage, ASilentSensorsSegmentIsFlaggedInThePosesUntilItIsBack) {
         flagged += (m & bitOf) != 0;
     }
     EXPECT_GT(flagged, 40);  // at least ~0.7 s of 60 Hz poses
+    // While flagged, the segment holds the rotation of the last pose that measured it.
+    const auto j = static_cast<std::size_t>(b.sensors[kSensor].segment);
+    for (std::size_t k = before + 1; k < log.poses.size(); ++k) {
+        if ((log.poses[k].second & bitOf) != 0) {
+            EXPECT_TRUE(log.rotations[k][j].isApprox(log.rotations[k - 1][j])) << k;
+        }
+    }
 }
 
 }  // namespace

@@ -1,0 +1,469 @@
+#include "fusion/body/body_tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include <fmt/format.h>
+
+namespace caphub::body {
+
+namespace {
+
+SegmentMask maskOf(const std::vector<TrackedSensor>& sensors) {
+    SegmentMask m = 0;
+    for (const auto& s : sensors) {
+        m |= bit(s.segment);
+    }
+    return m;
+}
+
+}  // namespace
+
+std::string_view toString(CalibrationStatus::State s) {
+    switch (s) {
+        case CalibrationStatus::State::NotStarted:
+            return "not started";
+        case CalibrationStatus::State::Averaging:
+            return "averaging";
+        case CalibrationStatus::State::Done:
+            return "done";
+        case CalibrationStatus::State::Failed:
+            return "failed";
+    }
+    return "?";
+}
+
+BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> sensors,
+                         const BodyTrackerOptions& options)
+    : sensors_(std::move(sensors)),
+      options_(options),
+      period_(periodFromHz(options.rateHz)),
+      solver_(skeleton, maskOf(sensors_), options.solver),
+      held_(sensors_.size()),
+      online_(sensors_.size(), true) {
+    sensorOfSegment_.fill(-1);
+    nominal_.fill(Quatd::Identity());
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        const auto seg = static_cast<std::size_t>(idx(sensors_[i].segment));
+        sensorOfSegment_[seg] = static_cast<int>(i);
+        nominal_[seg] = sensors_[i].nominalMounting;
+    }
+    auto sensorOf = [this](Segment s) {
+        return sensorOfSegment_[static_cast<std::size_t>(idx(s))];
+    };
+    pelvisSensor_ = sensorOf(Segment::Pelvis);
+    footSensor_ = {sensorOf(Segment::LHindfoot), sensorOf(Segment::RHindfoot)};
+    footInertial_ = {FootInertial(options_.footInertialOptions),
+                     FootInertial(options_.footInertialOptions)};
+    out_.pose = &solver_.pose();
+    if (options_.solveUncalibrated) {
+        // No calibration pose: the nominal mountings, the subject facing north.
+        calibration_.mask = maskOf(sensors_);
+        calibration_.mounting = nominal_;
+        solver_.setCalibration(calibration_);
+        calibrated_ = true;
+    }
+}
+
+TrackerEvents BodyTracker::update(const SensorUpdate& u) {
+    TrackerEvents events;
+    if (u.sensor < 0 || static_cast<std::size_t>(u.sensor) >= sensors_.size() ||
+        !online_[static_cast<std::size_t>(u.sensor)]) {
+        return events;
+    }
+    gridWaits_ = false;
+    const Timestamp t = u.t;
+    auto& h = held_[static_cast<std::size_t>(u.sensor)];
+    if (h.count > 0 && t > h.latestT) {
+        h.previous = h.latest;
+        h.previousT = h.latestT;
+        h.count = 2;
+    } else if (h.count == 0) {
+        h.count = 1;
+    }
+    h.latest = u.qEnuSensor;
+    h.latestT = t;
+    h.rateRadS = u.rateRadS;
+    if (!gridStarted_ && calibrated_) {
+        gridStarted_ = true;
+        nextGrid_ = t;
+    }
+
+    if (request_) {
+        const Request& r = *request_;
+        Timestamp end = r.windows[0].from + options_.calibrationAverage;
+        for (int w = 1; w < r.windowCount; ++w) {
+            end = std::max(
+                end, r.windows[static_cast<std::size_t>(w)].from + options_.calibrationAverage);
+        }
+        const bool wasCalibrated = calibrated_;
+        if (t >= end) {
+            completeCalibration(t, events);
+            if (!wasCalibrated) {
+                // The update that completes it is not used further: the poses (and the root's
+                // inputs) start from the next one.
+                return events;
+            }
+        } else {
+            average(u);
+        }
+        if (!wasCalibrated) {
+            return events;
+        }
+    }
+    if (!calibrated_) {
+        return events;
+    }
+    if (options_.footInertial && h.count == 2) {
+        for (std::size_t k = 0; k < 2; ++k) {
+            if (u.sensor == footSensor_[k]) {
+                footInertial_[k].add(u.qEnuSensor.cast<double>(),
+                                     u.specificForceMps2.cast<double>(), u.rateRadS.cast<double>(),
+                                     toSeconds(h.latestT - h.previousT));
+            }
+        }
+    }
+    if (u.sensor == pelvisSensor_) {
+        pelvisForceSumEnu_ += u.qEnuSensor.cast<double>() * u.specificForceMps2.cast<double>();
+        ++pelvisForceCount_;
+    }
+    if (headingResetAt_ && t >= *headingResetAt_) {
+        applyHeadingReset(*headingResetAt_, events);
+        headingResetAt_.reset();
+    }
+    return events;
+}
+
+std::optional<Timestamp> BodyTracker::due(Timestamp through) {
+    if (!calibrated_ || !gridStarted_ || gridWaits_) {
+        return std::nullopt;
+    }
+    // Samples of several buses arrive interleaved, so `through` can jump by more than a period;
+    // after a long gap (every sensor silent) the grid restarts rather than catch up.
+    if (through - nextGrid_ > period_ * 10) {
+        nextGrid_ = through;
+    }
+    if (through >= nextGrid_) {
+        return nextGrid_;
+    }
+    return std::nullopt;
+}
+
+const TrackedPose& BodyTracker::solveAt(Timestamp t) {
+    const SensorFrame frame = frameAt(t);
+    const double dtS = poses_ == 0 ? toSeconds(period_) : toSeconds(t - lastPose_);
+    lastPose_ = t;
+    // The pelvis accelerometer over the frame, in the skeleton world frame: it tells a flight
+    // phase (a jump, a running stride) from stance, and the velocity at take-off.
+    std::optional<Vec3d> rootSpecificForce;
+    if (pelvisForceCount_ > 0) {
+        rootSpecificForce =
+            calibration_.qEnuWorld().conjugate() * (pelvisForceSumEnu_ / pelvisForceCount_);
+        pelvisForceSumEnu_.setZero();
+        pelvisForceCount_ = 0;
+    }
+    // The feet's dead reckoning, in the skeleton world frame.
+    FootSensorMotion feet;
+    const Quatd qWorldEnu = calibration_.qEnuWorld().conjugate();
+    for (std::size_t k = 0; k < 2; ++k) {
+        const int i = footSensor_[k];
+        if (options_.footInertial && i >= 0 && held_[static_cast<std::size_t>(i)].count > 0 &&
+            footInertial_[k].valid()) {
+            feet.valid[k] = true;
+            feet.still[k] = footInertial_[k].still();
+            feet.velocityMps[k] = qWorldEnu * footInertial_[k].velocityEnuMps();
+            feet.rateRadS[k] = qWorldEnu * footInertial_[k].rateEnuRadS();
+            feet.onFootM[k] = sensors_[static_cast<std::size_t>(i)].positionM;
+        }
+    }
+    solver_.solve(frame, dtS, rootSpecificForce, &feet);
+    ++poses_;
+    while (nextGrid_ <= t) {
+        nextGrid_ += period_;
+    }
+    // Valid: the segments of sensors that have reported within staleAfter of t.
+    SegmentMask present = 0;
+    for (int seg = 0; seg < kSegmentCount; ++seg) {
+        const int i = sensorOfSegment_[static_cast<std::size_t>(seg)];
+        if (has(frame.mask, seg) &&
+            t - held_[static_cast<std::size_t>(i)].latestT <= options_.staleAfter) {
+            present |= SegmentMask{1} << seg;
+        }
+    }
+    out_.t = t;
+    out_.pose = &solver_.pose();
+    out_.valid = solver_.poseSolver().validSegments(present);
+    out_.aidEnuMps2 = options_.aidFilters ? aidingAcceleration(dtS) : std::nullopt;
+    return out_;
+}
+
+void BodyTracker::startCalibration(ReferencePoseKind pose, Timestamp from) {
+    Request r;
+    r.method = pose == ReferencePoseKind::T ? CalibrationMethod::TPose : CalibrationMethod::NPose;
+    r.windowCount = 1;
+    r.windows[0].from = from;
+    r.latest = from;
+    for (auto& w : r.windows) {
+        w.sum.assign(sensors_.size(), Eigen::Vector4d::Zero());
+        w.count.assign(sensors_.size(), 0);
+    }
+    request_ = std::move(r);
+    state_ = CalibrationStatus::State::Averaging;
+    requested_ = request_->method;
+    calibrationMessage_.clear();
+}
+
+void BodyTracker::startTwoPoseCalibration(Timestamp tPoseFrom, Timestamp nPoseFrom) {
+    startCalibration(ReferencePoseKind::T, tPoseFrom);
+    request_->method = CalibrationMethod::TPlusN;
+    request_->windowCount = 2;
+    request_->windows[1].from = nPoseFrom;
+    request_->latest = std::min(tPoseFrom, nPoseFrom);
+    requested_ = CalibrationMethod::TPlusN;
+}
+
+void BodyTracker::headingResetAt(Timestamp t) {
+    headingResetAt_ = t;
+}
+
+void BodyTracker::forget(std::size_t sensor) {
+    held_[sensor].count = 0;
+    for (std::size_t k = 0; k < 2; ++k) {
+        if (footSensor_[k] == static_cast<int>(sensor)) {
+            footInertial_[k].reset();
+        }
+    }
+    // Its orientations before and after differ (a restarted filter finds its heading anew): the
+    // calibration averages what comes after.
+    if (request_) {
+        for (auto& w : request_->windows) {
+            w.sum[sensor].setZero();
+            w.count[sensor] = 0;
+        }
+    }
+}
+
+void BodyTracker::setSensorOnline(int sensor, bool online) {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= sensors_.size()) {
+        return;
+    }
+    const auto i = static_cast<std::size_t>(sensor);
+    if (online_[i] != online) {
+        forget(i);
+    }
+    online_[i] = online;
+}
+
+void BodyTracker::resetSensor(int sensor) {
+    if (sensor >= 0 && static_cast<std::size_t>(sensor) < sensors_.size()) {
+        forget(static_cast<std::size_t>(sensor));
+    }
+}
+
+bool BodyTracker::sensorOnline(int sensor) const {
+    return sensor >= 0 && static_cast<std::size_t>(sensor) < sensors_.size() &&
+           online_[static_cast<std::size_t>(sensor)];
+}
+
+std::optional<Timestamp> BodyTracker::latestUpdate(int sensor) const {
+    if (!sensorOnline(sensor) || held_[static_cast<std::size_t>(sensor)].count == 0) {
+        return std::nullopt;
+    }
+    return held_[static_cast<std::size_t>(sensor)].latestT;
+}
+
+CalibrationStatus BodyTracker::calibrationStatus() const {
+    CalibrationStatus s;
+    s.state = state_;
+    s.method = requested_;
+    s.message = calibrationMessage_;
+    if (state_ == CalibrationStatus::State::Done) {
+        s.progress = 1;
+    } else if (request_) {
+        // The windows may overlap or not: the share of their total length passed.
+        double passed = 0;
+        for (int w = 0; w < request_->windowCount; ++w) {
+            const Duration in =
+                request_->latest - request_->windows[static_cast<std::size_t>(w)].from;
+            passed += std::clamp(toSeconds(in), 0.0, toSeconds(options_.calibrationAverage));
+        }
+        s.progress = passed / (toSeconds(options_.calibrationAverage) * request_->windowCount);
+    }
+    return s;
+}
+
+void BodyTracker::average(const SensorUpdate& u) {
+    Request& r = *request_;
+    r.latest = std::max(r.latest, u.t);
+    const auto i = static_cast<std::size_t>(u.sensor);
+    for (int k = 0; k < r.windowCount; ++k) {
+        Window& w = r.windows[static_cast<std::size_t>(k)];
+        if (u.t < w.from || u.t >= w.from + options_.calibrationAverage) {
+            continue;
+        }
+        const Eigen::Quaternionf& q = u.qEnuSensor;
+        Eigen::Vector4d v(q.w(), q.x(), q.y(), q.z());
+        // q and -q are one rotation: add each on the side of the running sum.
+        if (v.dot(w.sum[i]) < 0) {
+            v = -v;
+        }
+        w.sum[i] += v;
+        ++w.count[i];
+    }
+}
+
+SensorFrame BodyTracker::averagedFrame(const Window& w, SegmentMask only) const {
+    SensorFrame frame;
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        if (w.count[i] == 0 || (only & bit(sensors_[i].segment)) == 0) {
+            continue;  // no orientation: the segment stays uncalibrated
+        }
+        const Eigen::Vector4d m = w.sum[i].normalized();
+        const auto seg = static_cast<std::size_t>(idx(sensors_[i].segment));
+        frame.qEnuSensor[seg] = Quatd(m[0], m[1], m[2], m[3]);
+        frame.mask |= bit(sensors_[i].segment);
+    }
+    return frame;
+}
+
+void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
+    const Request r = std::move(*request_);
+    request_.reset();
+    CalibrationOptions copt;
+    copt.nominalMounting = nominal_;
+    Result<BodyCalibration> cal = Error{EINVAL, "no calibration"};
+    if (r.method == CalibrationMethod::TPlusN) {
+        // Both poses need the same sensors: those averaged in both windows.
+        const SegmentMask both = averagedFrame(r.windows[0], ~SegmentMask{0}).mask &
+                                 averagedFrame(r.windows[1], ~SegmentMask{0}).mask;
+        cal = calibrateTwoPose(averagedFrame(r.windows[0], both), averagedFrame(r.windows[1], both),
+                               copt, toNs(t));
+    } else {
+        const auto pose =
+            r.method == CalibrationMethod::TPose ? ReferencePoseKind::T : ReferencePoseKind::N;
+        cal = calibrateOnePose(pose, averagedFrame(r.windows[0], ~SegmentMask{0}), copt, toNs(t));
+    }
+    if (!cal) {
+        state_ = CalibrationStatus::State::Failed;
+        calibrationMessage_ = cal.error().message;
+        events.calibrationFailed = true;
+        events.message = calibrationMessage_;
+        return;
+    }
+    const bool first = !calibrated_;
+    calibration_ = *cal;
+    solver_.setCalibration(calibration_);
+    solver_.resetRoot();
+    rootVelocityValid_ = false;
+    calibrated_ = true;
+    state_ = CalibrationStatus::State::Done;
+    calibrationMessage_.clear();
+    events.calibrated = true;
+    if (first) {
+        // The first pose is the calibration's own moment, solved once the next update is in.
+        gridStarted_ = true;
+        nextGrid_ = t;
+        gridWaits_ = true;
+    }
+}
+
+void BodyTracker::applyHeadingReset(Timestamp t, TrackerEvents& events) {
+    if (!calibrated_) {
+        events.headingResetFailed = true;
+        events.message = "heading reset: no body calibration to turn";
+        return;
+    }
+    const SensorFrame frame = frameAt(t);
+    SegmentMask present = 0;
+    for (int seg = 0; seg < kSegmentCount; ++seg) {
+        if (has(frame.mask, seg)) {
+            present |= SegmentMask{1} << seg;
+        }
+    }
+    if (!has(solver_.poseSolver().validSegments(present), idx(Segment::Pelvis))) {
+        events.headingResetFailed = true;
+        events.message = "heading reset: no orientation of the pelvis (nor the spine it follows)";
+        return;
+    }
+    Pose pose;
+    solver_.poseSolver().solve(frame, pose);
+    const Vec3d forward = pose.world(Segment::Pelvis) * Vec3d::UnitZ();
+    if (std::hypot(forward.x(), forward.z()) < 1e-6) {
+        events.headingResetFailed = true;
+        events.message =
+            "heading reset: the pelvis' forward axis is vertical, its heading undefined";
+        return;
+    }
+    headingReset(calibration_, pose);
+    solver_.setCalibration(calibration_);
+    // The aiding's low-passed velocity is in the old world.
+    rootVelocityValid_ = false;
+    events.headingReset = true;
+}
+
+SensorFrame BodyTracker::frameAt(Timestamp t) const {
+    SensorFrame frame;
+    for (int seg = 0; seg < kSegmentCount; ++seg) {
+        const int i = sensorOfSegment_[static_cast<std::size_t>(seg)];
+        Eigen::Quaternionf q;
+        if (i >= 0 && orientationAt(static_cast<std::size_t>(i), t, q)) {
+            frame.qEnuSensor[static_cast<std::size_t>(seg)] = q.cast<double>();
+            frame.mask |= SegmentMask{1} << seg;
+        }
+    }
+    return frame;
+}
+
+bool BodyTracker::orientationAt(std::size_t sensor, Timestamp t, Eigen::Quaternionf& q) const {
+    const auto& h = held_[sensor];
+    if (h.count == 0 || !online_[sensor]) {
+        return false;
+    }
+    if (h.count == 1) {
+        q = h.latest;  // no interval yet to interpolate or carry on over
+        return true;
+    }
+    const double span = toSeconds(h.latestT - h.previousT);  // > 0: samples are kept in order
+    if (t <= h.latestT) {
+        const double along = std::max(0.0, toSeconds(t - h.previousT) / span);
+        q = h.previous.slerp(static_cast<float>(along), h.latest).normalized();
+        return true;
+    }
+    // Past the latest (the sample for t has not arrived yet): on at the gyroscope's rate, as the
+    // filter's next prediction would, for at most one interval; a sensor silent for longer is
+    // held where it was (and, past staleAfter, not valid).
+    const double ahead = std::min(toSeconds(t - h.latestT), span);
+    const float angle = h.rateRadS.norm() * static_cast<float>(ahead);
+    q = angle > 0
+            ? (h.latest * Eigen::Quaternionf(Eigen::AngleAxisf(angle, h.rateRadS.normalized())))
+                  .normalized()
+            : h.latest;
+    return true;
+}
+
+std::optional<Vec3d> BodyTracker::aidingAcceleration(double dtS) {
+    // The filters low-pass gravity over seconds, so a sustained horizontal acceleration (starting
+    // to walk, stopping) would tilt every one of them alike; the root's velocity from the foot
+    // contacts says what it is. Low-passed over 0.5 s (within each step the root's speed swings
+    // and the contact changes step it; only the slow part tilts the filters), then
+    // differentiated; vertical motion averages out over a gait cycle and is left to the filters.
+    constexpr double kTauS = 0.5;
+    constexpr double kMaxMps2 = 4.0;  // beyond what walking or running sustains: a tracking slip
+    const Vec3d& v = solver_.rootTracker().rootVelocityMps();
+    const Vec3d horizontal(v.x(), 0, v.z());
+    if (!rootVelocityValid_ || dtS <= 0) {
+        rootVelocityLp_ = horizontal;
+        rootVelocityValid_ = true;
+        return std::nullopt;
+    }
+    const Vec3d before = rootVelocityLp_;
+    rootVelocityLp_ += (horizontal - before) * (1.0 - std::exp(-dtS / kTauS));
+    Vec3d a = (rootVelocityLp_ - before) / dtS;
+    if (a.norm() > kMaxMps2) {
+        a *= kMaxMps2 / a.norm();
+    }
+    return calibration_.qEnuWorld() * a;
+}
+
+}  // namespace caphub::body

@@ -1,0 +1,219 @@
+// The body tracked from the suit's sensor orientations: each sensor's latest orientations held
+// and interpolated to the pose grid's time, body calibration (a reference pose averaged over a
+// window, T+N from two moments, heading reset) at any time, the pelvis accelerometer and the
+// feet's dead reckoning for the root, the body's acceleration to aid the filters with, and which
+// segments a pose may be trusted for. No I/O and no clock: time is what the updates carry.
+// docs/skeleton.md, "The body tracker".
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "fusion/body/body_calibration.h"
+#include "fusion/body/body_solver.h"
+#include "fusion/body/foot_inertial.h"
+#include "hal/core/time.h"
+
+namespace caphub::body {
+
+// One sensor of the suit as the tracker sees it. Sensors are numbered by their place in the
+// list the tracker is built with (the board's order); one sensor per segment.
+struct TrackedSensor {
+    Segment segment = Segment::Pelvis;
+    Quatd nominalMounting = Quatd::Identity();  // q_segment_sensor, from the board file
+    Vec3d positionM = Vec3d::Zero();            // on the segment, in its frame (the feet's)
+};
+
+struct BodyTrackerOptions {
+    double rateHz = 60;  // the pose grid: poses per second
+    // Before any body calibration: solve poses on the nominal mountings, the subject facing
+    // north; false: no pose until a calibration succeeds.
+    bool solveUncalibrated = true;
+    // A calibration pose is averaged over this window from the moment it is asked for.
+    Duration calibrationAverage = std::chrono::seconds(1);
+    // Return the body's horizontal acceleration from the root's tracked velocity with each pose
+    // (TrackedPose::aidEnuMps2), for the filters to take as known linear acceleration.
+    bool aidFilters = true;
+    // Track each foot sensor's velocity from the foot's latest still instant (FootInertial).
+    bool footInertial = true;
+    FootInertialOptions footInertialOptions;
+    // A sensor whose latest update is older than this at a pose's time has stopped reporting
+    // without being declared offline: its segment is not valid in that pose. 0.25 s is 25
+    // sample periods at 100 Hz, far beyond the skew between buses.
+    Duration staleAfter = std::chrono::milliseconds(250);
+    BodySolverOptions solver;
+};
+
+// One sensor's fused sample: the filter's orientation and the calibrated readings it came from.
+struct SensorUpdate {
+    int sensor = 0;
+    Timestamp t{};                                                   // the sample's time
+    Eigen::Quaternionf qEnuSensor = Eigen::Quaternionf::Identity();  // sensor -> ENU
+    Eigen::Vector3f specificForceMps2 = Eigen::Vector3f::Zero();     // sensor frame
+    Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();              // sensor frame
+};
+
+// The latest calibration request and how far it got.
+struct CalibrationStatus {
+    enum class State : std::uint8_t { NotStarted, Averaging, Done, Failed };
+    State state = State::NotStarted;
+    CalibrationMethod method = CalibrationMethod::None;  // what was asked for
+    double progress = 0;  // averaging: the share of the window(s) passed, 0..1
+    std::string message;  // failed: why
+};
+std::string_view toString(CalibrationStatus::State s);
+
+// What an update did besides holding the orientation, for the caller to record.
+struct TrackerEvents {
+    bool calibrated = false;         // calibration() is a new one, taken at the update's time
+    bool calibrationFailed = false;  // calibrationStatus().message says why
+    bool headingReset = false;       // calibration().headingRad changed
+    bool headingResetFailed = false;
+    std::string message;  // a failure's reason
+};
+
+// One solved pose.
+struct TrackedPose {
+    Timestamp t{};
+    const Pose* pose = nullptr;  // the tracker's: valid until its next solve
+    // The segments whose orientation rests on sensors that are online and reporting (see
+    // PoseSolver::validSegments). A segment outside it is still filled in, but not measured.
+    SegmentMask valid = 0;
+    // The body's acceleration (ENU, m/s^2) for the filters to be aided with from now on; none:
+    // leave their aiding as it is (the first pose after a calibration).
+    std::optional<Vec3d> aidEnuMps2;
+};
+
+class BodyTracker {
+public:
+    BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> sensors,
+                const BodyTrackerOptions& options = {});
+
+    // One sensor's sample, in time order per sensor. Updates of a sensor that is offline, or
+    // with an index out of range, are ignored.
+    TrackerEvents update(const SensorUpdate& u);
+
+    // The pose grid: the earliest grid time not yet solved when every sensor has reported up to
+    // `through` (today the newest sample's time; a watermark - the least of the live sensors'
+    // latest times - works the same), or none. The grid starts at the first update, or at the
+    // first body calibration when poses wait for one; after a gap of ten periods it restarts at
+    // `through`. The update that completes the first calibration solves nothing: the grid's
+    // first point, its time, is due from the next update on.
+    std::optional<Timestamp> due(Timestamp through);
+    // The pose at t, from every sensor's orientations interpolated to t (carried on past a
+    // sensor's latest sample at its rate for at most one sample interval). Solving at or past the
+    // next grid time moves the grid on past t. Needs calibrated().
+    const TrackedPose& solveAt(Timestamp t);
+
+    // Body calibration in a reference pose held from `from` for the averaging window; it
+    // completes on the first update past the window. Replaces a request still averaging.
+    void startCalibration(ReferencePoseKind pose, Timestamp from);
+    // T+N: the T-pose held from tPoseFrom and the N-pose from nPoseFrom, each for the window.
+    void startTwoPoseCalibration(Timestamp tPoseFrom, Timestamp nPoseFrom);
+    // Turn the capture world about up so that the pelvis faces +Z as it did at t: applied on the
+    // first update at or after t, from the orientations at t.
+    void headingResetAt(Timestamp t);
+
+    // A sensor out (lost, silent) or back. While out its updates are ignored and its segment is
+    // not valid in any pose; it comes back with nothing held, its foot's dead reckoning
+    // restarted.
+    void setSensorOnline(int sensor, bool online);
+    // Its filter restarted: what was held of it is stale. It stays online.
+    void resetSensor(int sensor);
+    bool sensorOnline(int sensor) const;
+    // A sensor's latest update time, none before its first or while it is out (for a watermark).
+    std::optional<Timestamp> latestUpdate(int sensor) const;
+
+    // Poses are solved: a body calibration is in use, or the nominal mountings are allowed.
+    bool calibrated() const { return calibrated_; }
+    const BodyCalibration& calibration() const { return calibration_; }
+    CalibrationStatus calibrationStatus() const;
+    // Why the latest calibration request failed; empty when it did not (or is still averaging).
+    const std::string& calibrationError() const { return calibrationMessage_; }
+    std::uint64_t poses() const { return poses_; }
+    const TrackedPose& latest() const { return out_; }
+    const Pose& pose() const { return solver_.pose(); }
+    const BodySolver& solver() const { return solver_; }
+    const std::vector<TrackedSensor>& sensors() const { return sensors_; }
+    Duration period() const { return period_; }
+
+private:
+    // Per sensor its two latest orientations and their sample times. Poses are solved on a fixed
+    // grid that the sensors' samples do not fall on (60 Hz poses from 100 Hz sensors): taken as
+    // they are, the orientations would be 0-10 ms old in a repeating pattern, and the joint
+    // rates (the foot contacts' velocities) would swing by tens of percent from pose to pose.
+    struct HeldOrientation {
+        Eigen::Quaternionf previous = Eigen::Quaternionf::Identity();
+        Eigen::Quaternionf latest = Eigen::Quaternionf::Identity();
+        Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();  // the latest gyro, sensor frame
+        Timestamp previousT{};
+        Timestamp latestT{};
+        int count = 0;  // orientations held: 0, 1 or 2
+    };
+    // A calibration being averaged: per window and sensor the sum of sign-aligned quaternions.
+    struct Window {
+        Timestamp from{};
+        std::vector<Eigen::Vector4d> sum;
+        std::vector<int> count;
+    };
+    struct Request {
+        CalibrationMethod method = CalibrationMethod::None;
+        std::array<Window, 2> windows;  // one per pose: the T-pose first for T+N
+        int windowCount = 0;
+        Timestamp latest{};  // the newest update seen while averaging
+    };
+
+    void forget(std::size_t sensor);
+    void average(const SensorUpdate& u);
+    SensorFrame averagedFrame(const Window& w, SegmentMask only) const;
+    void completeCalibration(Timestamp t, TrackerEvents& events);
+    void applyHeadingReset(Timestamp t, TrackerEvents& events);
+    // A sensor's orientation at t: between its two latest samples, or carried on past the latest
+    // at its gyroscope's rate for at most one sample interval. False when it has none.
+    bool orientationAt(std::size_t sensor, Timestamp t, Eigen::Quaternionf& q) const;
+    // The sensors' orientations at t, and which segments they cover.
+    SensorFrame frameAt(Timestamp t) const;
+    // The body's horizontal acceleration from the root's tracked velocity, for the filters.
+    std::optional<Vec3d> aidingAcceleration(double dtS);
+
+    std::vector<TrackedSensor> sensors_;
+    BodyTrackerOptions options_;
+    Duration period_;
+    BodySolver solver_;
+    std::array<int, kSegmentCount> sensorOfSegment_;  // -1 when none
+    std::array<Quatd, kSegmentCount> nominal_;
+    std::vector<HeldOrientation> held_;
+    std::vector<bool> online_;
+    int pelvisSensor_ = -1;
+    // The feet's sensors (-1 when none) and their dead reckoning.
+    std::array<int, 2> footSensor_{-1, -1};
+    std::array<FootInertial, 2> footInertial_;
+    // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
+    // their mean goes to the skeleton world frame once per pose.
+    Vec3d pelvisForceSumEnu_ = Vec3d::Zero();
+    int pelvisForceCount_ = 0;
+
+    BodyCalibration calibration_;
+    bool calibrated_ = false;
+    std::optional<Request> request_;
+    CalibrationStatus::State state_ = CalibrationStatus::State::NotStarted;
+    CalibrationMethod requested_ = CalibrationMethod::None;
+    std::string calibrationMessage_;
+    std::optional<Timestamp> headingResetAt_;
+
+    bool gridStarted_ = false;
+    bool gridWaits_ = false;  // the update that completed the first calibration: nothing due
+    Timestamp nextGrid_{};
+    Timestamp lastPose_{};
+    std::uint64_t poses_ = 0;
+    TrackedPose out_;
+    Vec3d rootVelocityLp_ = Vec3d::Zero();  // m/s, skeleton world, horizontal
+    bool rootVelocityValid_ = false;
+};
+
+}  // namespace caphub::body

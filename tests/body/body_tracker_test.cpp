@@ -1,0 +1,430 @@
+// The body tracker without the virtual suit: sensor orientations made from known poses and
+// mountings go in at 100 Hz, and the poses it solves on its 60 Hz grid, its calibrations, heading
+// resets and segment validity are checked against what made them.
+#include "fusion/body/body_tracker.h"
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "tests/body/test_poses.h"
+
+namespace caphub::body {
+namespace {
+
+using namespace std::chrono_literals;
+using S = Segment;
+constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180;
+// The tracker holds orientations as floats (the filters' type): a unit quaternion in float is
+// good to ~1e-7, and slerp and the mounting products keep the angle error below 1e-5 rad; 1e-4
+// rad (0.006 deg) leaves room and is still a thousand times below any error tested for.
+constexpr double kTolRad = 1e-4;
+const Duration kSample = 10ms;  // 100 Hz sensors
+
+// The segments whose reference orientation differs between the T- and the N-pose.
+bool isArm(Segment s) {
+    return s == S::LUpperarm || s == S::LForearm || s == S::LHand || s == S::RUpperarm ||
+           s == S::RForearm || s == S::RHand;
+}
+
+Skeleton skeleton() {
+    return Skeleton(*dimensionsFromSubject(board::SubjectConfig{}));
+}
+
+// The 17 sensors of the full suit, in segment order, with nominal mountings that are arbitrary
+// but fixed, and true (strapped) mountings off them by 15-25 deg: about the segment's left axis
+// for the trunk and legs, about its forward axis for the arms. Neither turns a sensor's heading
+// in the T- or the N-pose, so the calibrations' heading estimate is exact and the mountings
+// they find can be compared with the truth to float precision.
+struct Suit {
+    std::vector<TrackedSensor> sensors;
+    std::array<Quatd, kSegmentCount> trueMounting;
+    std::vector<int> sensorOf = std::vector<int>(kSegmentCount, -1);
+
+    Suit() {
+        trueMounting.fill(Quatd::Identity());
+        std::mt19937 rng(7);
+        for (int i = 0; i < kSegmentCount; ++i) {
+            if (!has(testing::kFullSuit, i)) {
+                continue;
+            }
+            const auto u = static_cast<std::size_t>(i);
+            const auto s = static_cast<Segment>(i);
+            TrackedSensor t;
+            t.segment = s;
+            t.nominalMounting = testing::randomRotation(rng, kPi);
+            t.positionM = Vec3d(0, 0.02, 0.05);
+            const Vec3d axis = isArm(s) ? Vec3d::UnitZ() : Vec3d::UnitX();
+            const double off = (15.0 + 10.0 * (i % 3) / 2.0) * kDeg;
+            trueMounting[u] = (fromAxisAngle<double>(axis, off) * t.nominalMounting).normalized();
+            sensorOf[u] = static_cast<int>(sensors.size());
+            sensors.push_back(t);
+        }
+    }
+    int sensor(Segment s) const { return sensorOf[static_cast<std::size_t>(idx(s))]; }
+    std::array<Quatd, kSegmentCount> nominal() const {
+        std::array<Quatd, kSegmentCount> m;
+        m.fill(Quatd::Identity());
+        for (const auto& t : sensors) {
+            m[static_cast<std::size_t>(idx(t.segment))] = t.nominalMounting;
+        }
+        return m;
+    }
+};
+
+Timestamp at(Duration d) {
+    return Timestamp{d};
+}
+
+// Every sensor's update for the subject in `pose`, facing headingRad, with the given mountings;
+// each sensor turning at rateRadS in its own frame.
+void feed(BodyTracker& tracker, const Suit& suit, Timestamp t, const Pose& pose, double headingRad,
+          const std::array<Quatd, kSegmentCount>& mounting, std::vector<TrackerEvents>* events,
+          int skip = -1) {
+    const SensorFrame f = testing::sensorsFor(pose, mounting, testing::kFullSuit, headingRad);
+    for (std::size_t i = 0; i < suit.sensors.size(); ++i) {
+        if (static_cast<int>(i) == skip) {
+            continue;
+        }
+        SensorUpdate u;
+        u.sensor = static_cast<int>(i);
+        u.t = t;
+        u.qEnuSensor =
+            f.qEnuSensor[static_cast<std::size_t>(idx(suit.sensors[i].segment))].cast<float>();
+        u.specificForceMps2 = (u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f));
+        TrackerEvents e = tracker.update(u);
+        if (events != nullptr) {
+            events->push_back(e);
+        }
+    }
+}
+
+// Solves every grid time that is due through t; returns how many.
+int solveDue(BodyTracker& tracker, Timestamp t) {
+    int n = 0;
+    while (auto g = tracker.due(t)) {
+        tracker.solveAt(*g);
+        ++n;
+    }
+    return n;
+}
+
+// The largest angle between the solved and the true world orientations of the sensored segments.
+double worstSegmentError(const Pose& solved, const Pose& truth) {
+    double worst = 0;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (has(testing::kFullSuit, i)) {
+            const auto u = static_cast<std::size_t>(i);
+            worst = std::max(worst, solved.qWorld[u].angularDistance(truth.qWorld[u]));
+        }
+    }
+    return worst;
+}
+
+double worstMountingError(const BodyCalibration& cal, const Suit& suit) {
+    double worst = 0;
+    for (const auto& s : suit.sensors) {
+        const auto u = static_cast<std::size_t>(idx(s.segment));
+        worst = std::max(worst, cal.mounting[u].angularDistance(suit.trueMounting[u]));
+    }
+    return worst;
+}
+
+// The pelvis' heading in the solved pose: its forward axis' angle about up from +Z.
+double pelvisHeading(const Pose& p) {
+    const Vec3d z = p.world(S::Pelvis) * Vec3d::UnitZ();
+    return std::atan2(z.x(), z.z());
+}
+
+TEST(BodyTracker, SolvesTheKnownPoseTheSensorOrientationsCameFrom) {
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    std::mt19937 rng(3);
+    const Pose truth = testing::randomPose(rng, 60 * kDeg);
+    // Not calibrated in a pose: the nominal mountings, the subject facing north.
+    for (int k = 0; k < 20; ++k) {
+        const Timestamp t = at(kSample * k);
+        feed(tracker, suit, t, truth, 0, suit.nominal(), nullptr);
+        solveDue(tracker, t);
+    }
+    ASSERT_GT(tracker.poses(), 5U);
+    EXPECT_LT(worstSegmentError(tracker.pose(), truth), kTolRad);
+    // The joint rotations of the joints between two sensored segments follow.
+    for (S s : {S::LForearm, S::RCalf, S::LHand, S::LUpperarm}) {
+        EXPECT_LT(tracker.pose().qLocal[static_cast<std::size_t>(idx(s))].angularDistance(
+                      truth.qLocal[static_cast<std::size_t>(idx(s))]),
+                  kTolRad)
+            << board::segmentName(s);
+    }
+    // Every segment rests on reporting sensors.
+    EXPECT_EQ(tracker.latest().valid, testing::kAll);
+}
+
+TEST(BodyTracker, SolvesEachGridTimeBetweenTheSensorsSamples) {
+    // One sensor on the pelvis turning at 2 rad/s about an axis of its own frame: its
+    // orientation at any time is known exactly. 60 Hz poses from 100 Hz samples fall between
+    // samples (and past the newest one); each must show the pelvis at its own grid time, not at
+    // its newest sample's (which would be up to 10 ms = 0.02 rad off).
+    TrackedSensor pelvis;
+    pelvis.segment = S::Pelvis;
+    BodyTracker tracker(skeleton(), {pelvis});
+    const Vec3d axis = Vec3d(0.3, -0.5, 0.8).normalized();
+    constexpr double kRateRadS = 2.0;
+    const Quatd q0 = fromAxisAngle<double>(Vec3d(1, 1, 0).normalized(), 0.4);
+    const auto orientation = [&](Timestamp t) {
+        return (q0 * fromAxisAngle<double>(axis, kRateRadS * toSeconds(t.time_since_epoch())))
+            .normalized();
+    };
+    const Quatd qWorldEnu = enuFromSkeletonWorld().conjugate();
+    int checked = 0;
+    int between = 0;
+    for (int k = 0; k < 60; ++k) {
+        const Timestamp t = at(kSample * k);
+        SensorUpdate u;
+        u.t = t;
+        u.qEnuSensor = orientation(t).cast<float>();
+        u.rateRadS = (axis * kRateRadS).cast<float>();
+        (void)tracker.update(u);
+        while (auto g = tracker.due(t)) {
+            const TrackedPose& p = tracker.solveAt(*g);
+            EXPECT_EQ(p.t, *g);
+            const Quatd expected = qWorldEnu * orientation(*g);
+            if (k >= 1) {  // the first sample has no interval to interpolate over
+                EXPECT_LT(p.pose->world(S::Pelvis).angularDistance(expected), kTolRad)
+                    << "grid time " << toNs(*g) << " ns, newest sample " << toNs(t) << " ns";
+                ++checked;
+                between += *g != t ? 1 : 0;
+            }
+        }
+    }
+    // Past the newest sample (590 ms) the orientation is carried on at the sensor's rate.
+    const TrackedPose& ahead = tracker.solveAt(at(595ms));
+    EXPECT_LT(ahead.pose->world(S::Pelvis).angularDistance(qWorldEnu * orientation(at(595ms))),
+              kTolRad);
+    // 0.59 s of samples: the grid's 36 points (less the first), two in three off the samples.
+    EXPECT_GE(checked, 34);
+    EXPECT_GE(between, 20);
+    // The grid is the output rate's, from the first sample.
+    EXPECT_EQ(tracker.period(), periodFromHz(60));
+    EXPECT_EQ(tracker.latest().t, at(595ms));
+}
+
+TEST(BodyTracker, CalibratesInTheTPoseLaterInTheCaptureAndSolvesRelativeToIt) {
+    // The subject stands 3 s in any pose, then holds the T-pose facing 30 deg west of north;
+    // calibration is asked for at 4 s, averaging from then for 1 s. Before it the nominal
+    // mountings (15-25 deg off the true ones) tilt every segment; after it the T-pose is solved
+    // as the reference pose, facing +Z, and a new pose as itself.
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    std::mt19937 rng(5);
+    const Pose wander = testing::randomPose(rng, 40 * kDeg);
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const Pose after = testing::randomPose(rng, 60 * kDeg);
+    const double heading = 30 * kDeg;
+    std::vector<TrackerEvents> events;
+    std::optional<Timestamp> calibratedAt;
+    for (int k = 0; k < 800; ++k) {
+        const Timestamp t = at(kSample * k);
+        const Pose& pose = t < at(3s) ? wander : t < at(6s) ? tpose : after;
+        if (t == at(4s)) {
+            EXPECT_EQ(tracker.calibrationStatus().state, CalibrationStatus::State::NotStarted);
+            tracker.startCalibration(ReferencePoseKind::T, t);
+        }
+        if (t == at(3900ms)) {
+            // Still on the nominal mountings: the T-pose is solved 15-25 deg off.
+            EXPECT_GT(worstSegmentError(tracker.pose(), tpose), 10 * kDeg);
+        }
+        if (t == at(4500ms)) {
+            const CalibrationStatus s = tracker.calibrationStatus();
+            EXPECT_EQ(s.state, CalibrationStatus::State::Averaging);
+            EXPECT_NEAR(s.progress, 0.5, 0.02);
+        }
+        events.clear();
+        feed(tracker, suit, t, pose, heading, suit.trueMounting, &events);
+        for (const auto& e : events) {
+            if (e.calibrated) {
+                EXPECT_FALSE(calibratedAt) << "calibrated twice";
+                calibratedAt = t;
+            }
+        }
+        solveDue(tracker, t);
+        if (t == at(5900ms)) {
+            // Calibrated at 5 s: the T-pose (held until 6 s) is now the reference pose.
+            EXPECT_LT(worstSegmentError(tracker.pose(), tpose), kTolRad);
+        }
+    }
+    ASSERT_TRUE(calibratedAt);
+    EXPECT_EQ(*calibratedAt, at(5s));  // the first update past the window
+    EXPECT_EQ(tracker.calibration().tNs, toNs(at(5s)));
+    EXPECT_EQ(tracker.calibration().method, CalibrationMethod::TPose);
+    EXPECT_EQ(tracker.calibrationStatus().state, CalibrationStatus::State::Done);
+    EXPECT_NEAR(tracker.calibration().headingRad, heading, kTolRad);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
+}
+
+TEST(BodyTracker, CalibratesTPlusNFromTwoMoments) {
+    // The T-pose held from 1 s, the N-pose from 3 s; asked for at the start. The arms' mountings
+    // come from gravity in the two poses (TRIAD), the rest from both poses.
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    tracker.startTwoPoseCalibration(at(1s), at(3s));
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const Pose npose = testing::referencePose(ReferencePoseKind::N);
+    std::mt19937 rng(9);
+    const Pose after = testing::randomPose(rng, 60 * kDeg);
+    const double heading = -50 * kDeg;
+    std::vector<TrackerEvents> events;
+    for (int k = 0; k < 600; ++k) {
+        const Timestamp t = at(kSample * k);
+        const Pose& pose = t < at(2500ms) ? tpose : t < at(4500ms) ? npose : after;
+        feed(tracker, suit, t, pose, heading, suit.trueMounting, &events);
+        if (t < at(4s)) {
+            EXPECT_EQ(solveDue(tracker, t), 0) << "a pose before the calibration";
+        } else {
+            solveDue(tracker, t);
+        }
+    }
+    int calibrated = 0;
+    for (const auto& e : events) {
+        calibrated += e.calibrated ? 1 : 0;
+        EXPECT_FALSE(e.calibrationFailed) << e.message;
+    }
+    EXPECT_EQ(calibrated, 1);
+    EXPECT_EQ(tracker.calibration().method, CalibrationMethod::TPlusN);
+    EXPECT_EQ(tracker.calibration().tNs, toNs(at(4s)));
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
+}
+
+TEST(BodyTracker, HeadingResetTurnsTheWorldSoThatThePelvisFacesForward) {
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    std::mt19937 rng(11);
+    Pose turned = testing::randomPose(rng, 30 * kDeg);
+    // The whole body turned 70 deg about up from where the capture world faces.
+    turned.qLocal[0] = fromAxisAngle<double>(Vec3d::UnitY(), 70 * kDeg) * turned.qLocal[0];
+    worldFromLocal(turned);
+    const double before = pelvisHeading(turned);
+    ASSERT_GT(std::abs(before), 30 * kDeg);
+    tracker.headingResetAt(at(1s));
+    std::vector<TrackerEvents> events;
+    for (int k = 0; k < 150; ++k) {
+        const Timestamp t = at(kSample * k);
+        feed(tracker, suit, t, turned, 0, suit.nominal(), &events);
+        solveDue(tracker, t);
+        if (t == at(990ms)) {
+            EXPECT_NEAR(pelvisHeading(tracker.pose()), before, kTolRad);
+        }
+    }
+    int resets = 0;
+    for (const auto& e : events) {
+        resets += e.headingReset ? 1 : 0;
+        EXPECT_FALSE(e.headingResetFailed) << e.message;
+    }
+    EXPECT_EQ(resets, 1);
+    EXPECT_NEAR(tracker.calibration().headingRad, before, kTolRad);
+    EXPECT_NEAR(pelvisHeading(tracker.pose()), 0, kTolRad);
+    // The joints are as they were: the body turned as a whole.
+    for (int i = 1; i < kSegmentCount; ++i) {
+        if (has(testing::kFullSuit, i) && has(testing::kFullSuit, parentOf(i))) {
+            const auto u = static_cast<std::size_t>(i);
+            EXPECT_LT(tracker.pose().qLocal[u].angularDistance(turned.qLocal[u]), kTolRad)
+                << board::segmentName(static_cast<Segment>(i));
+        }
+    }
+}
+
+TEST(BodyTracker, ASensorOfflineMakesItsSegmentsInvalidUntilItReportsAgain) {
+    // The chest sensor goes offline at 1 s: the chest is not measured, and nor are the two spine
+    // segments that share its rotation (l5 between pelvis and chest, c7 between chest and
+    // skull). Its late updates are ignored. Back at 2 s with the chest bent 40 deg (its filter
+    // restarted), the chest is valid again and shows the new orientation, not the old one.
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    const Pose upright;
+    Pose bent;
+    bent.qLocal[static_cast<std::size_t>(idx(S::T12))] =
+        fromAxisAngle<double>(Vec3d::UnitX(), 40 * kDeg);
+    worldFromLocal(bent);
+    const int chest = suit.sensor(S::T12);
+    const SegmentMask out = bit(S::T12) | bit(S::L5) | bit(S::C7);
+    for (int k = 0; k < 300; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(1s)) {
+            tracker.setSensorOnline(chest, false);
+        }
+        if (t == at(2s)) {
+            tracker.setSensorOnline(chest, true);
+            // Back with nothing held: the orientation from before it went out is forgotten.
+            EXPECT_FALSE(tracker.latestUpdate(chest));
+        }
+        const bool offline = t >= at(1s) && t < at(2s);
+        // Offline, the chest still sends the bent pose (late samples): the tracker ignores them.
+        feed(tracker, suit, t, offline || t >= at(2s) ? bent : upright, 0, suit.nominal(), nullptr);
+        while (auto g = tracker.due(t)) {
+            const TrackedPose& p = tracker.solveAt(*g);
+            if (offline && *g >= at(1s)) {
+                EXPECT_EQ(p.valid & out, 0U) << "at " << toNs(*g) << " ns";
+                EXPECT_EQ(p.valid | out, testing::kAll);
+            } else if (*g >= at(1s)) {
+                EXPECT_EQ(p.valid, testing::kAll) << "at " << toNs(*g) << " ns";
+            }
+        }
+        if (t == at(1500ms)) {
+            EXPECT_FALSE(tracker.latestUpdate(chest));
+        }
+    }
+    EXPECT_EQ(tracker.latestUpdate(chest), at(kSample * 299));
+    EXPECT_LT(tracker.pose().world(S::T12).angularDistance(bent.world(S::T12)), kTolRad);
+}
+
+TEST(BodyTracker, ASensorThatStopsReportingIsInvalidOnceStale) {
+    // Never declared offline, the left forearm's sensor falls silent at 1 s: after staleAfter
+    // (0.25 s) its segment is not valid; the hand, with its own sensor, stays valid.
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    const Pose upright;
+    const int forearm = suit.sensor(S::LForearm);
+    SegmentMask lastValid = 0;
+    for (int k = 0; k < 200; ++k) {
+        const Timestamp t = at(kSample * k);
+        feed(tracker, suit, t, upright, 0, suit.nominal(), nullptr, t >= at(1s) ? forearm : -1);
+        while (auto g = tracker.due(t)) {
+            const TrackedPose& p = tracker.solveAt(*g);
+            if (*g < at(1200ms)) {
+                EXPECT_EQ(p.valid, testing::kAll) << "at " << toNs(*g) << " ns";
+            }
+            lastValid = p.valid;
+        }
+    }
+    EXPECT_EQ(lastValid, testing::kAll & ~bit(S::LForearm));
+}
+
+TEST(BodyTracker, AFailedCalibrationSaysWhyAndKeepsTheOneInUse) {
+    // A calibration whose window passes before any sensor reported has nothing to average.
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    feed(tracker, suit, at(2s), Pose{}, 0, suit.nominal(), &events);
+    ASSERT_FALSE(events.empty());
+    EXPECT_TRUE(events[0].calibrationFailed);
+    EXPECT_FALSE(events[0].message.empty());
+    const CalibrationStatus s = tracker.calibrationStatus();
+    EXPECT_EQ(s.state, CalibrationStatus::State::Failed);
+    EXPECT_EQ(s.message, events[0].message);
+    EXPECT_TRUE(tracker.calibrated());  // still on the nominal mountings
+    EXPECT_EQ(tracker.calibration().method, CalibrationMethod::None);
+}
+
+}  // namespace
+}  // namespace caphub::body
