@@ -76,6 +76,13 @@ std::uint32_t FusionStage::clipEvents(int sensor) const {
     return filters_[static_cast<std::size_t>(sensor)]->clipEvents();
 }
 
+fusion::FilterRejections FusionStage::rejections(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size()) {
+        return {};
+    }
+    return filters_[static_cast<std::size_t>(sensor)]->rejections();
+}
+
 const FusionStage::Latest* FusionStage::latest(int sensor) const {
     if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size() ||
         !valid_[static_cast<std::size_t>(sensor)]) {

@@ -40,6 +40,9 @@ public:
     std::uint64_t updates() const { return updates_; }
     // Gyroscope clipping episodes of a sensor so far (samples the driver flagged saturated).
     std::uint32_t clipEvents(int sensor) const;
+    // What a sensor's filter refused so far: samples not finite or beyond the chips' range, and
+    // restarts from a non-finite state (docs/fusion.md, "Input validation"). Zero for no sensor.
+    fusion::FilterRejections rejections(int sensor) const;
     // The body's acceleration (ENU, m/s^2) as the body solver tracks it, handed to every filter
     // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
     // next call. Zero (the default): unknown.
