@@ -183,17 +183,33 @@ public:
     const FilterParams& params() const { return params_; }
     const FilterCoefficients<S>& coefficients() const { return coeffs_; }
     const FilterState<S>& state() const { return state_; }
-    void setState(const FilterState<S>& s) { state_ = s; }
+    // A state holding a non-finite value or a quaternion off the unit sphere is not taken: the
+    // filter restarts instead (counted).
+    void setState(const FilterState<S>& s);
 
 private:
     // The updates once their inputs passed the checks.
     void updateAccChecked(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth);
     void updateMagChecked(const Vec3<Mag>& mag);
     void correctInclination(const Vec3<Unit>& u);
-    // Restarts a state that holds a non-finite value (float only: fixed point has none), given
-    // the sum of the values the update wrote (non-finite when any of them is).
-    void restartIfNotFinite(Unit sumOfWritten);
-    static void count(std::uint32_t& n) { n += n < UINT32_MAX ? 1U : 0U; }
+    // Restarts the filter when `q`, a quaternion an update wrote, is not finite or has left the
+    // unit sphere (|q|^2 off by 2 %; renormalisation keeps it within 1e-6). Only the quaternion
+    // updates can turn checked inputs into such a value: the series exp map and the one-step
+    // renormalisation diverge on a turn of several rad per sample, which a real rate gives at a
+    // low sample rate (40 rad/s at 5 Hz; in fixed point the angle saturates and the norm drifts
+    // instead). Everything else in the state is a low-pass of checked inputs or follows from
+    // the quaternions within the same update, and setState() checks all of it.
+    void restartIfDiverged(const Quat<Unit>& q) {
+        const Unit n2 = scalarCast<Unit>(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+        if (!(n2 > fromDouble<Unit>(0.98) && n2 < fromDouble<Unit>(1.02))) [[unlikely]] {
+            restart();  // NaN fails the test too
+        }
+    }
+    // Clears the state (keeping the clipping count) and counts the restart; the next samples
+    // align it afresh, as at the start.
+    [[gnu::cold]] void restart();
+    // Counts one rejected input, saturating.
+    [[gnu::cold]] static void reject(std::uint32_t& n) { n += n < UINT32_MAX ? 1U : 0U; }
 
     FilterParams params_;
     FilterCoefficients<S> coeffs_;
@@ -204,12 +220,18 @@ private:
 
 namespace detail {
 
-// Sums for the finiteness check, pairwise so that they do not form one long dependency chain.
-inline float sum(const Vec3<float>& v) {
-    return v.x + (v.y + v.z);
-}
-inline float sum(const Quat<float>& q) {
-    return (q.w + q.x) + (q.y + q.z);
+// True when every value of a float state is finite (a fixed-point state always is).
+template <typename S>
+bool finiteState(const FilterState<S>& s) {
+    if constexpr (std::is_floating_point_v<typename S::Unit>) {
+        const auto v = [](const auto& x) { return x.x + x.y + x.z; };
+        const auto q = [](const auto& x) { return x.w + x.x + x.y + x.z; };
+        return std::isfinite(q(s.qGyr) + q(s.qCorr) + v(s.bias) + v(s.accLp) + v(s.accBand) +
+                             v(s.lastGyr) + v(s.rest.gyrLp) + v(s.rest.accLp) + s.mag.refNormSq +
+                             s.mag.refDip + s.mag.candNormSq + s.mag.candDip);
+    } else {
+        return true;
+    }
 }
 
 }  // namespace detail
@@ -263,21 +285,28 @@ void OrientationFilter<S>::setup(const FilterParams& p) {
 }
 
 template <typename S>
-void OrientationFilter<S>::restartIfNotFinite(Unit sumOfWritten) {
-    if constexpr (std::is_floating_point_v<Unit>) {
-        if (!std::isfinite(sumOfWritten)) {
-            const std::uint32_t clips = state_.clipEvents;
-            resetState();
-            state_.clipEvents = clips;
-            count(rejections_.stateResets);
-        }
+void OrientationFilter<S>::restart() {
+    const std::uint32_t clips = state_.clipEvents;
+    resetState();
+    state_.clipEvents = clips;
+    reject(rejections_.stateResets);
+}
+
+template <typename S>
+void OrientationFilter<S>::setState(const FilterState<S>& s) {
+    state_ = s;
+    if (!detail::finiteState(s)) {
+        restart();
+        return;
     }
+    restartIfDiverged(state_.qGyr);
+    restartIfDiverged(state_.qCorr);
 }
 
 template <typename S>
 void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
-    if (!configured_ || !withinLimit(gyr, coeffs_.gyrLimit)) {
-        count(rejections_.gyr);
+    if (!configured_ || !withinLimit(gyr, coeffs_.gyrLimit)) [[unlikely]] {
+        reject(rejections_.gyr);
         return;
     }
     FilterState<S>& s = state_;
@@ -298,30 +327,22 @@ void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
                            scalarCast<Unit>(coeffs_.gyrPeriodS * w.y),
                            scalarCast<Unit>(coeffs_.gyrPeriodS * w.z)};
     s.qGyr = renormalized(quatMul(s.qGyr, smallRotation(theta)));
-    if constexpr (std::is_floating_point_v<Unit>) {
-        restartIfNotFinite((detail::sum(s.qGyr) + detail::sum(s.bias)) +
-                           (detail::sum(s.lastGyr) + detail::sum(s.rest.gyrLp)));
-    }
+    restartIfDiverged(s.qGyr);
 }
 
 template <typename S>
 void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarthIn) {
-    if (!configured_ || !withinLimit(acc, coeffs_.accLimit)) {
-        count(rejections_.acc);
+    if (!configured_ || !withinLimit(acc, coeffs_.accLimit)) [[unlikely]] {
+        reject(rejections_.acc);
         return;
     }
     Vec3<Acc> linAccEarth = linAccEarthIn;
-    if (!withinLimit(linAccEarth, coeffs_.accLimit)) {
-        count(rejections_.linAcc);
+    if (!withinLimit(linAccEarth, coeffs_.accLimit)) [[unlikely]] {
+        reject(rejections_.linAcc);
         linAccEarth = Vec3<Acc>{};
     }
     updateAccChecked(acc, linAccEarth);
-    if constexpr (std::is_floating_point_v<Unit>) {
-        FilterState<S>& s = state_;
-        restartIfNotFinite(
-            (detail::sum(s.qCorr) + detail::sum(s.bias)) +
-            ((detail::sum(s.accLp) + detail::sum(s.accBand)) + detail::sum(s.rest.accLp)));
-    }
+    restartIfDiverged(state_.qCorr);
 }
 
 template <typename S>
@@ -393,17 +414,13 @@ void OrientationFilter<S>::correctInclination(const Vec3<Unit>& u) {
 
 template <typename S>
 void OrientationFilter<S>::updateMag(const Vec3<Mag>& magIn) {
-    if (!configured_ || !withinLimit(magIn, coeffs_.magLimit)) {
-        count(rejections_.mag);
+    if (!configured_ || !withinLimit(magIn, coeffs_.magLimit)) [[unlikely]] {
+        reject(rejections_.mag);
         state_.magUsed = false;
         return;
     }
     updateMagChecked(magIn);
-    if constexpr (std::is_floating_point_v<Unit>) {
-        const MagDisturbanceState<S>& m = state_.mag;
-        restartIfNotFinite(detail::sum(state_.qCorr) +
-                           ((m.refNormSq + m.refDip) + (m.candNormSq + m.candDip)));
-    }
+    restartIfDiverged(state_.qCorr);
 }
 
 template <typename S>

@@ -58,7 +58,8 @@ constexpr bool withinLimit(Fixed<F> v, Fixed<F> limit) {
 }
 template <typename T>
 bool withinLimit(const Vec3<T>& v, T limit) {
-    return withinLimit(v.x, limit) && withinLimit(v.y, limit) && withinLimit(v.z, limit);
+    // Bitwise: three compares and one branch, the caller's.
+    return withinLimit(v.x, limit) & withinLimit(v.y, limit) & withinLimit(v.z, limit);
 }
 
 template <typename T>

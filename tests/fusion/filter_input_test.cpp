@@ -227,6 +227,25 @@ TYPED_TEST(FilterInputTest, ARateThatGivesNoSamplePeriodIsRefused) {
     EXPECT_TRUE(OrientationFilter<TypeParam>(this->params(100.0)).configured());
 }
 
+// A rate within the gyroscope's range can still be a turn of many rad per sample at a low sample
+// rate (40 rad/s at 1 Hz), which the strapdown's series exp map cannot follow: the float state
+// used to diverge to NaN and the fixed-point quaternion drifted off the unit sphere (|q|^2 0.6).
+// The filter restarts instead, counts it, and its output stays a unit quaternion.
+TYPED_TEST(FilterInputTest, ATurnTooFastForTheSampleRateRestartsTheFilterInsteadOfDiverging) {
+    OrientationFilter<TypeParam> f(this->params(1.0));
+    for (int i = 0; i < 50; ++i) {
+        f.updateGyr(fromDoubleVec<typename TypeParam::Gyr>(40.0, 5.0, 0.0));
+        f.updateAcc(fromDoubleVec<typename TypeParam::Acc>(0.0, 0.0, 9.81));
+        f.updateMag(fromDoubleVec<typename TypeParam::Mag>(0.0, 19.0, -45.0));
+        const Quatd q = this->quat(f);
+        ASSERT_TRUE(finite(q)) << "sample " << i;
+        // Renormalised each update: unit to far better than 1 %.
+        ASSERT_NEAR(q.squaredNorm(), 1.0, 0.01) << "sample " << i;
+    }
+    EXPECT_GE(f.rejections().stateResets, 1U);
+    EXPECT_EQ(f.rejections().samples(), 0U);  // no reading was beyond its limit
+}
+
 // A non-finite state cannot come from checked inputs, but a snapshot (setState) can carry one:
 // the filter notices after its next update, restarts, counts it, and re-aligns from the next
 // good samples. Float only: a fixed-point state has no NaN.
