@@ -9,7 +9,7 @@ namespace {
 
 template <typename S>
 std::vector<Quatd> runTyped(const std::vector<ImuSample>& samples, int decimation,
-                            const FilterParams& params) {
+                            const FilterParams& params, FilterRejections* rejections) {
     OrientationFilter<S> filter(params);
     std::vector<Quatd> out;
     out.reserve(samples.size());
@@ -28,22 +28,26 @@ std::vector<Quatd> runTyped(const std::vector<ImuSample>& samples, int decimatio
         }
         out.push_back(held);
     }
+    if (rejections != nullptr) {
+        *rejections = filter.rejections();
+    }
     return out;
 }
 
 }  // namespace
 
 std::vector<Quatd> runFilter(const std::vector<ImuSample>& samples, double rateHz, int decimation,
-                             FilterVariant variant, FilterParams params) {
+                             FilterVariant variant, FilterParams params,
+                             FilterRejections* rejections) {
     decimation = std::max(1, decimation);
     const double fedHz = rateHz / decimation;
     params.gyrRateHz = fedHz;
     params.accRateHz = fedHz;
     params.magRateHz = fedHz;
     if (variant == FilterVariant::Fixed) {
-        return runTyped<FixedTypes>(samples, decimation, params);
+        return runTyped<FixedTypes>(samples, decimation, params, rejections);
     }
-    return runTyped<FloatTypes>(samples, decimation, params);
+    return runTyped<FloatTypes>(samples, decimation, params, rejections);
 }
 
 SampleErrors broadSampleErrors(const Quatd& est, const Quatd& opt) {

@@ -22,9 +22,11 @@ enum class FilterVariant { Float, Fixed };
 
 // Runs a filter over samples recorded at rateHz, feeding every `decimation`-th sample (1 = all)
 // at rateHz / decimation; the estimate is held for the rows in between. One quaternion (sensor ->
-// earth, ENU) per input sample. `params` rates are overwritten with the fed rate.
+// earth, ENU) per input sample. `params` rates are overwritten with the fed rate. `rejections`,
+// when given, receives what the filter refused (docs/fusion.md, "Input validation").
 std::vector<Quatd> runFilter(const std::vector<ImuSample>& samples, double rateHz, int decimation,
-                             FilterVariant variant, FilterParams params = {});
+                             FilterVariant variant, FilterParams params = {},
+                             FilterRejections* rejections = nullptr);
 
 // RMSE (deg) of the three BROAD errors over the movement samples with finite ground truth.
 struct BroadErrors {

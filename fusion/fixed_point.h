@@ -17,12 +17,14 @@ struct Fixed {
     std::int32_t raw = 0;
 
     // Saturates outside the range: conversions happen at the filter's edge and in setup, where
-    // an out-of-range value must not wrap into a value of the opposite sign.
+    // an out-of-range value must not wrap into a value of the opposite sign. NaN has no side: it
+    // becomes the bottom of the range like a value below it, so that the filter's input check
+    // (withinLimit) rejects it as it rejects every saturated value: an int32 has no NaN.
     static constexpr Fixed fromDouble(double v) {
         const double scaled = v * static_cast<double>(std::int64_t{1} << F);
         Fixed out;
         if (!(scaled == scaled)) {  // NaN
-            out.raw = 0;
+            out.raw = std::numeric_limits<std::int32_t>::min();
         } else if (scaled >= 2147483647.0) {
             out.raw = std::numeric_limits<std::int32_t>::max();
         } else if (scaled <= -2147483648.0) {
@@ -39,6 +41,11 @@ struct Fixed {
     }
     constexpr double toDouble() const {
         return static_cast<double>(raw) / static_cast<double>(std::int64_t{1} << F);
+    }
+    // At either end of the range: what fromDouble gives for a value beyond it or for NaN.
+    constexpr bool saturated() const {
+        return raw == std::numeric_limits<std::int32_t>::max() ||
+               raw == std::numeric_limits<std::int32_t>::min();
     }
 
     constexpr Fixed operator-() const { return fromRaw(-raw); }

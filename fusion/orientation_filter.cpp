@@ -4,6 +4,62 @@
 
 namespace caphub::fusion {
 
+const char* invalidFilterParameter(const FilterParams& p) {
+    // Rates: a gyroscope period must fit the fixed-point coefficient range (below 2 s; the
+    // slowest chip rate in the catalogue is the LIS3MDL's 0.625 Hz), and 20 kHz is three times
+    // the fastest. Times up to 1e4 s keep every sample count within an int32 at that rate.
+    constexpr double kMinRateHz = 0.6;
+    constexpr double kMaxRateHz = 20e3;
+    constexpr double kAboveZero = 1e-9;
+    constexpr double kLongS = 1e4;
+    constexpr double kLarge = 1e7;
+    const struct {
+        const char* name;
+        double value;
+        double lo;
+        double hi;
+    } checks[] = {
+        {"gyrRateHz", p.gyrRateHz, kMinRateHz, kMaxRateHz},
+        {"accRateHz", p.accRateHz, kMinRateHz, kMaxRateHz},
+        {"magRateHz", p.magRateHz, kMinRateHz, kMaxRateHz},
+        {"tauAccS", p.tauAccS, kAboveZero, kLongS},
+        {"accLpDamping", p.accLpDamping, kAboveZero, 10.0},
+        {"gyrNoiseDpsRtHz", p.gyrNoiseDpsRtHz, kAboveZero, kLarge},
+        {"biasDriftDpsRtS", p.biasDriftDpsRtS, 0.0, kLarge},
+        {"inclNoiseDegRtHz", p.inclNoiseDegRtHz, kAboveZero, kLarge},
+        {"headingNoiseDegRtHz", p.headingNoiseDegRtHz, kAboveZero, kLarge},
+        {"accDynamicThMps2", p.accDynamicThMps2, 0.0, kLarge},
+        {"gravityMps2", p.gravityMps2, kAboveZero, kLarge},
+        {"biasMaxDps", p.biasMaxDps, 0.0, kLarge},
+        {"restBiasTauS", p.restBiasTauS, kAboveZero, kLongS},
+        {"recoveryGainFactor", p.recoveryGainFactor, 0.0, kLarge},
+        {"gyrLimitDps", p.gyrLimitDps, kAboveZero, kLarge},
+        {"accLimitMps2", p.accLimitMps2, kAboveZero, kLarge},
+        {"magLimitUt", p.magLimitUt, kAboveZero, kLarge},
+        {"rest.filterTauS", p.rest.filterTauS, 0.0, kLongS},
+        {"rest.thGyrDps", p.rest.thGyrDps, 0.0, kLarge},
+        {"rest.thAccMps2", p.rest.thAccMps2, 0.0, kLarge},
+        {"rest.minTimeS", p.rest.minTimeS, 0.0, kLongS},
+        {"magDisturbance.normTh", p.magDisturbance.normTh, 0.0, 10.0},
+        {"magDisturbance.dipThDeg", p.magDisturbance.dipThDeg, 0.0, 180.0},
+        {"magDisturbance.refTauS", p.magDisturbance.refTauS, 0.0, kLongS},
+        {"magDisturbance.newFieldTimeS", p.magDisturbance.newFieldTimeS, 0.0, kLongS},
+        {"magDisturbance.newFieldMinRateDps", p.magDisturbance.newFieldMinRateDps, 0.0, kLarge},
+        {"magDisturbance.candidateTauS", p.magDisturbance.candidateTauS, 0.0, kLongS},
+        {"magDisturbance.recoveryTimeS", p.magDisturbance.recoveryTimeS, 0.0, kLongS},
+    };
+    for (const auto& c : checks) {
+        if (!(c.value >= c.lo && c.value <= c.hi)) {  // false for NaN too
+            return c.name;
+        }
+    }
+    // The gravity low-pass's semi-implicit Euler step is stable for omega_c dt < 1.
+    if (!(2.0 * p.accLpDamping / p.tauAccS / p.accRateHz < 1.0)) {
+        return "tauAccS";
+    }
+    return nullptr;
+}
+
 // Per horizontal axis, between two measurements dt apart:
 //   angle error   phi_k+1 = phi_k + dt b_k + w,  w ~ N(0, sigmaG^2 dt)
 //   bias error    b_k+1   = b_k + v,             v ~ N(0, sigmaB^2 dt)

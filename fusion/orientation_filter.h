@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <type_traits>
 
 #include "fusion/mag_disturbance.h"
 #include "fusion/rest_detector.h"
@@ -58,8 +59,30 @@ struct FilterParams {
     double biasMaxDps = 20.0;         // deg/s, the bias estimate is clamped to this
     double restBiasTauS = 2.0;        // s, time constant of the bias average at rest
     double recoveryGainFactor = 4.0;  // heading gain multiplier during recovery
+    // Input plausibility (docs/fusion.md, "Input validation"): a reading beyond these on any
+    // axis, or not finite, cannot come from a supported chip and is rejected and counted.
+    // 1.25 times the largest full scale of the catalogue (2000 deg/s, 16 g, the AK09916's
+    // 4912 uT): the margin covers the calibration's scale and offset.
+    double gyrLimitDps = 2500.0;  // deg/s
+    double accLimitMps2 = 196.0;  // m/s^2, 20 g
+    double magLimitUt = 6140.0;   // uT (the fixed-point format stops at 2048 uT before it)
     RestParams rest;
     MagDisturbanceParams magDisturbance;
+};
+
+// The first parameter that is not finite or outside its range (a rate from 0.6 Hz to 20 kHz,
+// time constants and noise densities above zero, ...), by its name in FilterParams; null when
+// all are usable. The filter's sample periods come from the rates: there is no per-sample dt.
+const char* invalidFilterParameter(const FilterParams& params);
+
+// What a filter refused since setup() (docs/fusion.md, "Input validation"). Saturating counts.
+struct FilterRejections {
+    std::uint32_t gyr = 0;          // gyroscope samples: non-finite or beyond gyrLimitDps
+    std::uint32_t acc = 0;          // accelerometer samples: non-finite or beyond accLimitMps2
+    std::uint32_t mag = 0;          // magnetometer samples: non-finite or beyond magLimitUt
+    std::uint32_t linAcc = 0;       // known accelerations (updateAcc) taken as unknown instead
+    std::uint32_t stateResets = 0;  // the state was found non-finite and restarted
+    std::uint32_t samples() const { return gyr + acc + mag; }
 };
 
 // Derived coefficients: what setup() computes once from the parameters and the rates.
@@ -77,6 +100,9 @@ struct FilterCoefficients {
     typename S::Coef dynHiSq{};     // ((g + th) / g)^2
     typename S::Bias biasMax{};     // rad/s
     typename S::Coef invGravity{};  // s^2/m, 1 / g
+    typename S::Gyr gyrLimit{};     // rad/s, largest plausible reading per axis
+    typename S::Acc accLimit{};     // m/s^2
+    typename S::Mag magLimit{};     // uT (saturated in fixed point: the format's range applies)
     RestCoefficients<S> rest;
     MagDisturbanceCoefficients<S> mag;
 };
@@ -122,11 +148,17 @@ public:
 
     explicit OrientationFilter(const FilterParams& params = FilterParams{}) { setup(params); }
 
-    // Computes the coefficients and clears the state.
+    // Computes the coefficients and clears the state and the rejection counts. Parameters that
+    // invalidFilterParameter() refuses leave the filter unconfigured: it rejects every sample.
     void setup(const FilterParams& params);
     void resetState() { state_ = FilterState<S>{}; }
+    bool configured() const { return configured_; }
 
-    // One sample of each sensor (sensor frame; rad/s, m/s^2, uT), each at its own rate.
+    // One sample of each sensor (sensor frame; rad/s, m/s^2, uT), each at its own rate. A
+    // reading that is not finite or beyond the sensor's limit on some axis is rejected: counted
+    // (rejections()) and not used, as if it had not been read. After each update a non-finite
+    // state (impossible from checked inputs, but setState() can bring one) is restarted: the
+    // next good samples align it afresh, as at the start.
     // clipped: the chip's raw rate reached its full scale on some axis, so the rate is only a
     // lower bound and the strapdown lost an unknown rotation; counted (clipEvents) so that the
     // error that follows can be told from the filter's own.
@@ -134,7 +166,8 @@ public:
     // linAccEarth: the sensor's linear acceleration in the earth frame (ENU, m/s^2) when it is
     // known from outside, such as the body's motion from its foot contacts; it is taken out of
     // the specific force before the gravity low-pass, so that a sustained acceleration (starting
-    // to walk, braking) does not tilt the estimate. Zero: unknown.
+    // to walk, braking) does not tilt the estimate. Zero: unknown (as is one beyond the
+    // accelerometer's limit, or not finite, counted in rejections().linAcc).
     void updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth = Vec3<Acc>{});
     void updateMag(const Vec3<Mag>& mag);
 
@@ -144,19 +177,64 @@ public:
     bool atRest() const { return state_.atRest; }
     bool magDisturbed() const { return state_.mag.disturbed; }
     std::uint32_t clipEvents() const { return state_.clipEvents; }
+    // Kept across resetState() and the restarts it counts; cleared by setup().
+    const FilterRejections& rejections() const { return rejections_; }
 
     const FilterParams& params() const { return params_; }
     const FilterCoefficients<S>& coefficients() const { return coeffs_; }
     const FilterState<S>& state() const { return state_; }
-    void setState(const FilterState<S>& s) { state_ = s; }
+    // A state holding a non-finite value or a quaternion off the unit sphere is not taken: the
+    // filter restarts instead (counted).
+    void setState(const FilterState<S>& s);
 
 private:
+    // The updates once their inputs passed the checks.
+    void updateAccChecked(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth);
+    void updateMagChecked(const Vec3<Mag>& mag);
     void correctInclination(const Vec3<Unit>& u);
+    // Restarts the filter when `q`, a quaternion an update wrote, is not finite or has left the
+    // unit sphere (|q|^2 off by 2 %; renormalisation keeps it within 1e-6). Only the quaternion
+    // updates can turn checked inputs into such a value: the series exp map and the one-step
+    // renormalisation diverge on a turn of several rad per sample, which a real rate gives at a
+    // low sample rate (40 rad/s at 5 Hz; in fixed point the angle saturates and the norm drifts
+    // instead). Everything else in the state is a low-pass of checked inputs or follows from
+    // the quaternions within the same update, and setState() checks all of it.
+    void restartIfDiverged(const Quat<Unit>& q) {
+        const Unit n2 = scalarCast<Unit>(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+        if (!(n2 > fromDouble<Unit>(0.98) && n2 < fromDouble<Unit>(1.02))) [[unlikely]] {
+            restart();  // NaN fails the test too
+        }
+    }
+    // Clears the state (keeping the clipping count) and counts the restart; the next samples
+    // align it afresh, as at the start.
+    [[gnu::cold]] void restart();
+    // Counts one rejected input, saturating.
+    [[gnu::cold]] static void reject(std::uint32_t& n) { n += n < UINT32_MAX ? 1U : 0U; }
 
     FilterParams params_;
     FilterCoefficients<S> coeffs_;
     FilterState<S> state_;
+    FilterRejections rejections_;
+    bool configured_ = false;
 };
+
+namespace detail {
+
+// True when every value of a float state is finite (a fixed-point state always is).
+template <typename S>
+bool finiteState(const FilterState<S>& s) {
+    if constexpr (std::is_floating_point_v<typename S::Unit>) {
+        const auto v = [](const auto& x) { return x.x + x.y + x.z; };
+        const auto q = [](const auto& x) { return x.w + x.x + x.y + x.z; };
+        return std::isfinite(q(s.qGyr) + q(s.qCorr) + v(s.bias) + v(s.accLp) + v(s.accBand) +
+                             v(s.lastGyr) + v(s.rest.gyrLp) + v(s.rest.accLp) + s.mag.refNormSq +
+                             s.mag.refDip + s.mag.candNormSq + s.mag.candDip);
+    } else {
+        return true;
+    }
+}
+
+}  // namespace detail
 
 // ---------------------------------------------------------------------------------------------
 
@@ -164,6 +242,13 @@ template <typename S>
 void OrientationFilter<S>::setup(const FilterParams& p) {
     constexpr double kDegToRad = 0.017453292519943295;
     params_ = p;
+    rejections_ = FilterRejections{};
+    configured_ = invalidFilterParameter(p) == nullptr;
+    if (!configured_) {
+        coeffs_ = FilterCoefficients<S>{};
+        resetState();
+        return;
+    }
     const double gyrDt = 1.0 / p.gyrRateHz;
     const double accDt = 1.0 / p.accRateHz;
     const double magDt = 1.0 / p.magRateHz;
@@ -192,12 +277,38 @@ void OrientationFilter<S>::setup(const FilterParams& p) {
     c.rest = makeRestCoefficients<S>(p.rest, gyrDt, accDt);
     c.mag = makeMagDisturbanceCoefficients<S>(p.magDisturbance, magDt);
     c.invGravity = fromDouble<Coef>(1.0 / p.gravityMps2);
+    c.gyrLimit = fromDouble<Gyr>(p.gyrLimitDps * kDegToRad);
+    c.accLimit = fromDouble<Acc>(p.accLimitMps2);
+    c.magLimit = fromDouble<Mag>(p.magLimitUt);
     coeffs_ = c;
     resetState();
 }
 
 template <typename S>
+void OrientationFilter<S>::restart() {
+    const std::uint32_t clips = state_.clipEvents;
+    resetState();
+    state_.clipEvents = clips;
+    reject(rejections_.stateResets);
+}
+
+template <typename S>
+void OrientationFilter<S>::setState(const FilterState<S>& s) {
+    state_ = s;
+    if (!detail::finiteState(s)) {
+        restart();
+        return;
+    }
+    restartIfDiverged(state_.qGyr);
+    restartIfDiverged(state_.qCorr);
+}
+
+template <typename S>
 void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
+    if (!configured_ || !withinLimit(gyr, coeffs_.gyrLimit)) [[unlikely]] {
+        reject(rejections_.gyr);
+        return;
+    }
     FilterState<S>& s = state_;
     if (clipped && !s.gyrClipped) {
         ++s.clipEvents;
@@ -216,10 +327,26 @@ void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
                            scalarCast<Unit>(coeffs_.gyrPeriodS * w.y),
                            scalarCast<Unit>(coeffs_.gyrPeriodS * w.z)};
     s.qGyr = renormalized(quatMul(s.qGyr, smallRotation(theta)));
+    restartIfDiverged(s.qGyr);
 }
 
 template <typename S>
-void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth) {
+void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarthIn) {
+    if (!configured_ || !withinLimit(acc, coeffs_.accLimit)) [[unlikely]] {
+        reject(rejections_.acc);
+        return;
+    }
+    Vec3<Acc> linAccEarth = linAccEarthIn;
+    if (!withinLimit(linAccEarth, coeffs_.accLimit)) [[unlikely]] {
+        reject(rejections_.linAcc);
+        linAccEarth = Vec3<Acc>{};
+    }
+    updateAccChecked(acc, linAccEarth);
+    restartIfDiverged(state_.qCorr);
+}
+
+template <typename S>
+void OrientationFilter<S>::updateAccChecked(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarth) {
     FilterState<S>& s = state_;
     restUpdateAcc(coeffs_.rest, s.rest, acc);
 
@@ -287,6 +414,17 @@ void OrientationFilter<S>::correctInclination(const Vec3<Unit>& u) {
 
 template <typename S>
 void OrientationFilter<S>::updateMag(const Vec3<Mag>& magIn) {
+    if (!configured_ || !withinLimit(magIn, coeffs_.magLimit)) [[unlikely]] {
+        reject(rejections_.mag);
+        state_.magUsed = false;
+        return;
+    }
+    updateMagChecked(magIn);
+    restartIfDiverged(state_.qCorr);
+}
+
+template <typename S>
+void OrientationFilter<S>::updateMagChecked(const Vec3<Mag>& magIn) {
     FilterState<S>& s = state_;
     s.magUsed = false;
     if (!s.inclinationInit) {

@@ -45,6 +45,23 @@ constexpr Vec3<To> castVec(const Vec3<T>& v) {
     }
 }
 
+// |v| <= limit on every axis: the filter's input check. False for NaN and the infinities in
+// float; in fixed point false for a saturated value (beyond the format's range, or NaN, both of
+// which Fixed::fromDouble saturates), whatever the limit, so a limit beyond the range means
+// "up to the range".
+inline bool withinLimit(float v, float limit) {
+    return std::fabs(v) <= limit;  // false for NaN; inf > any finite limit
+}
+template <int F>
+constexpr bool withinLimit(Fixed<F> v, Fixed<F> limit) {
+    return !v.saturated() && absOf(v) <= limit;
+}
+template <typename T>
+bool withinLimit(const Vec3<T>& v, T limit) {
+    // Bitwise: three compares and one branch, the caller's.
+    return withinLimit(v.x, limit) & withinLimit(v.y, limit) & withinLimit(v.z, limit);
+}
+
 template <typename T>
 Vec3<double> toDoubleVec(const Vec3<T>& v) {
     return {toDouble(v.x), toDouble(v.y), toDouble(v.z)};

@@ -42,6 +42,35 @@ Result<void> writeEstimate(const std::string& path, const BroadTrial& trial,
     return {};
 }
 
+// "rejected 1 gyroscope sample and 2 magnetometer samples (...)", or empty when none was.
+std::string describeRejections(const fusion::FilterRejections& r) {
+    std::vector<std::string> parts;
+    const auto add = [&parts](std::uint32_t n, const char* what) {
+        if (n > 0) {
+            parts.push_back(fmt::format("{} {} sample{}", n, what, n == 1 ? "" : "s"));
+        }
+    };
+    add(r.gyr, "gyroscope");
+    add(r.acc, "accelerometer");
+    add(r.mag, "magnetometer");
+    if (parts.empty() && r.stateResets == 0) {
+        return {};
+    }
+    std::string text = "rejected ";
+    for (std::size_t i = 0; i < parts.size(); ++i) {
+        text += (i == 0 ? "" : (i + 1 == parts.size() ? " and " : ", ")) + parts[i];
+    }
+    if (parts.empty()) {
+        text += "no sample";
+    }
+    text += " (not finite or beyond the sensors' range: docs/fusion.md, \"Input validation\")";
+    if (r.stateResets > 0) {
+        text += fmt::format("; the filter restarted {} time{} from a non-finite state",
+                            r.stateResets, r.stateResets == 1 ? "" : "s");
+    }
+    return text;
+}
+
 int runReplay(const ReplayOptions& o) {
     if (!o.output.empty() && o.inputs.size() != 1) {
         fmt::print(stderr, "caphub fusion replay: --out takes exactly one --in file\n");
@@ -74,7 +103,22 @@ int runReplay(const ReplayOptions& o) {
             }
             decimation = std::max(1, static_cast<int>(std::lround(trial->rateHz / o.rateHz)));
         }
-        const auto estimate = fusion::runFilter(trial->samples, trial->rateHz, decimation, variant);
+        const double fedHz = trial->rateHz / decimation;
+        fusion::FilterParams params;
+        params.gyrRateHz = params.accRateHz = params.magRateHz = fedHz;
+        if (const char* bad = fusion::invalidFilterParameter(params)) {
+            fmt::print(stderr,
+                       "caphub fusion replay: {}: the filter cannot run at {:g} Hz ({} must lie "
+                       "within 0.6 Hz and 20 kHz)\n",
+                       in, fedHz, bad);
+            return kExitRuntime;
+        }
+        fusion::FilterRejections rejected;
+        const auto estimate = fusion::runFilter(trial->samples, trial->rateHz, decimation, variant,
+                                                params, &rejected);
+        if (const std::string r = describeRejections(rejected); !r.empty()) {
+            fmt::print(stderr, "caphub fusion replay: {}: {}\n", in, r);
+        }
         if (!o.output.empty()) {
             if (auto r = writeEstimate(o.output, *trial, estimate); !r) {
                 fmt::print(stderr, "caphub fusion replay: {}\n", r.error().message);

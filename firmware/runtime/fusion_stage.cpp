@@ -32,6 +32,7 @@ void FusionStage::onSample(const SensorSample& s) {
     const auto& cal = calibrations_[static_cast<std::size_t>(s.sensor)];
     const fusion::ImuSample c = cal ? cal->apply(raw) : raw;
     const bool clipped = (in.flags & hal::ImuSample::kGyrSaturated) != 0;  // set by the driver
+    const std::uint32_t rejectedBefore = f.rejections().samples();
     f.updateGyr({static_cast<float>(c.gyrRadS.x()), static_cast<float>(c.gyrRadS.y()),
                  static_cast<float>(c.gyrRadS.z())},
                 clipped);
@@ -42,6 +43,11 @@ void FusionStage::onSample(const SensorSample& s) {
         (in.flags & hal::ImuSample::kMagOverflow) == 0) {
         f.updateMag({static_cast<float>(c.magUt.x()), static_cast<float>(c.magUt.y()),
                      static_cast<float>(c.magUt.z())});
+    }
+    if (f.rejections().samples() != rejectedBefore) {
+        // A glitched read (not finite, beyond the chip's range): the filter dropped it; the body
+        // must not see its rate or specific force either. The sensor keeps its last orientation.
+        return;
     }
     const auto q = f.quat();
     Eigen::Quaternionf out(q.w, q.x, q.y, q.z);
@@ -105,6 +111,13 @@ std::uint32_t FusionStage::clipEvents(int sensor) const {
         return 0;
     }
     return filters_[static_cast<std::size_t>(sensor)]->clipEvents();
+}
+
+fusion::FilterRejections FusionStage::rejections(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= filters_.size()) {
+        return {};
+    }
+    return filters_[static_cast<std::size_t>(sensor)]->rejections();
 }
 
 const FusionStage::Latest* FusionStage::latest(int sensor) const {

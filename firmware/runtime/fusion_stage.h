@@ -46,6 +46,9 @@ public:
     // How often a sensor's filter was reset because the sensor was lost, its data-ready line went
     // silent or its chip reset itself (once per outage).
     std::uint32_t resets(int sensor) const;
+    // What a sensor's filter refused so far: samples not finite or beyond the chips' range, and
+    // restarts from a non-finite state (docs/fusion.md, "Input validation"). Zero for no sensor.
+    fusion::FilterRejections rejections(int sensor) const;
     // The body's acceleration (ENU, m/s^2) as the body solver tracks it, handed to every filter
     // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
     // next call. Zero (the default): unknown.

@@ -143,6 +143,33 @@ TEST(FusionStage, ASensorThatWasOutStartsAgainFromItsFirstSamples) {
     EXPECT_LT(fusion.latest(2)->orientation.angularDistance(flipped) * 180 / hal::kPi, 5.0);
 }
 
+// A glitched bus read (a 5000 rad/s rate, a NaN specific force) is rejected by the sensor's
+// filter and counted per sensor; the sensor's orientation stays finite.
+TEST(FusionStage, CountsTheRejectedSamplesPerSensorAndStaysFinite) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    firmware::SensorSample s;
+    s.sensor = 3;
+    s.sample.accMps2 = Eigen::Vector3f(0, 0, 9.81f);
+    s.sample.gyrRadps = Eigen::Vector3f(0.1f, 0, 0);
+    fusion.onSample(s);
+    s.sample.gyrRadps = Eigen::Vector3f(5000.0f, 0, 0);
+    fusion.onSample(s);
+    s.sample.gyrRadps = Eigen::Vector3f(0.1f, 0, 0);
+    s.sample.accMps2 = Eigen::Vector3f(0, std::nanf(""), 9.81f);
+    fusion.onSample(s);
+    s.sample.accMps2 = Eigen::Vector3f(0, 0, 9.81f);
+    for (int i = 0; i < 10; ++i) {
+        fusion.onSample(s);
+    }
+    ASSERT_NE(fusion.latest(3), nullptr);
+    EXPECT_TRUE(fusion.latest(3)->orientation.coeffs().allFinite());
+    EXPECT_EQ(fusion.rejections(3).gyr, 1U);
+    EXPECT_EQ(fusion.rejections(3).acc, 1U);
+    EXPECT_EQ(fusion.rejections(5).samples(), 0U);
+    EXPECT_EQ(fusion.rejections(99).samples(), 0U);  // no such sensor
+}
+
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     calibrateInPose(body::ReferencePoseKind::T, body::CalibrationMethod::TPose);
 }

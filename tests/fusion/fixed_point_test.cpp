@@ -26,7 +26,11 @@ TEST(FixedPoint, SaturatesInsteadOfWrappingOutsideItsRange) {
     using Q = Fixed<30>;  // [-2, 2)
     EXPECT_EQ(Q::fromDouble(5.0).raw, std::numeric_limits<std::int32_t>::max());
     EXPECT_EQ(Q::fromDouble(-5.0).raw, std::numeric_limits<std::int32_t>::min());
-    EXPECT_EQ(Q::fromDouble(std::nan("")).raw, 0);
+    // NaN has no side: it goes to the bottom, where the filter's input check rejects it.
+    EXPECT_EQ(Q::fromDouble(std::nan("")).raw, std::numeric_limits<std::int32_t>::min());
+    EXPECT_TRUE(Q::fromDouble(std::nan("")).saturated());
+    EXPECT_TRUE(Q::fromDouble(5.0).saturated());
+    EXPECT_FALSE(Q::fromDouble(1.999).saturated());
     // A product that does not fit the target format saturates too.
     const auto big = Fixed<20>::fromDouble(1500.0) * Fixed<20>::fromDouble(1500.0);
     EXPECT_EQ(scalarCast<Fixed<20>>(big).raw, std::numeric_limits<std::int32_t>::max());
