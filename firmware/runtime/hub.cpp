@@ -202,6 +202,40 @@ Result<void> Hub::marker(const std::string& label) {
     return {};
 }
 
+Result<void> Hub::calibrateBody(body::ReferencePoseKind pose, Duration countdown) {
+    if (countdown < Duration{0}) {
+        return Error{EINVAL, "calibrate: the countdown cannot be negative"};
+    }
+    std::lock_guard lock(commandMutex_);
+    const char* name = pose == body::ReferencePoseKind::T ? "tpose" : "npose";
+    return onPipeline("calibrate", [&](Timestamp t) {
+        body_.tracker().startCalibration(pose, t + countdown);
+        recorder_.event(t, cap::EventKind::Command, -1, 0,
+                        fmt::format("calibrate {} in {:.1f} s", name, toSeconds(countdown)));
+    });
+}
+
+Result<void> Hub::calibrateBodyTPlusN(Duration tCountdown, Duration nCountdown) {
+    if (tCountdown < Duration{0} || nCountdown < Duration{0}) {
+        return Error{EINVAL, "calibrate: the countdowns cannot be negative"};
+    }
+    std::lock_guard lock(commandMutex_);
+    return onPipeline("calibrate", [&](Timestamp t) {
+        body_.tracker().startTwoPoseCalibration(t + tCountdown, t + nCountdown);
+        recorder_.event(t, cap::EventKind::Command, -1, 0,
+                        fmt::format("calibrate T+N: T-pose in {:.1f} s, N-pose in {:.1f} s",
+                                    toSeconds(tCountdown), toSeconds(nCountdown)));
+    });
+}
+
+Result<void> Hub::headingReset() {
+    std::lock_guard lock(commandMutex_);
+    return onPipeline("heading reset", [&](Timestamp t) {
+        body_.tracker().headingResetAt(t);
+        recorder_.event(t, cap::EventKind::Command, -1, 0, "heading reset");
+    });
+}
+
 HubState Hub::state() {
     HubState s;
     if (status_) {
@@ -219,6 +253,7 @@ HubState Hub::state() {
                 : (body_.calibrated() ? std::string(body::toString(body_.calibration().method))
                                       : std::string("not calibrated"));
         s.poses = body_.poses();
+        s.calibrationStatus = body_.tracker().calibrationStatus();
         if (const RecordingWriter* w = recorder_.current(); w != nullptr && s.take) {
             s.take->records = w->stats().records;
             s.take->error = w->error();

@@ -67,7 +67,8 @@ struct HubState {
     std::optional<TakeInfo> take;
     std::uint64_t takesRecorded = 0;
     bool bodyCalibrated = false;
-    std::string bodyCalibration;  // the method, or why it failed
+    std::string bodyCalibration;                // the method, or why it failed
+    body::CalibrationStatus calibrationStatus;  // the latest request and how far it got
     std::uint64_t poses = 0;
 };
 
@@ -95,6 +96,14 @@ public:
     Result<TakeInfo> stopTake();
     // A marker with a label in the take being recorded (none: an error).
     Result<void> marker(const std::string& label);
+    // Body calibration in a reference pose the subject holds from `countdown` after now (the
+    // orientations are averaged over the body's window from then); the result comes later, in
+    // state() and as a "calibrated" event.
+    Result<void> calibrateBody(body::ReferencePoseKind pose, Duration countdown = Duration{0});
+    // T+N: the T-pose held from tCountdown after now, the N-pose from nCountdown after now.
+    Result<void> calibrateBodyTPlusN(Duration tCountdown, Duration nCountdown);
+    // Turns the capture's world about up so that the subject faces forward as now.
+    Result<void> headingReset();
     HubState state();
 
     Capture& capture() { return capture_; }

@@ -198,6 +198,63 @@ TEST(Hub, TakesStartAndStopWhileTheCaptureRunsEachInItsOwnFile) {
     EXPECT_EQ(caps, 2u);
 }
 
+// Body calibration and heading reset asked of a running capture: the calibration averages from
+// its countdown and completes (state, event and metadata in the take), a T+N calibration from two
+// moments is refused with its reason when the arms did not move, and the heading reset is
+// recorded; a negative countdown is refused.
+TEST(Hub, CalibratesTheBodyAndResetsTheHeadingWhileTheCaptureRuns) {
+    HubRig rig("calibrate");
+    rig.hub->start();
+    std::this_thread::sleep_for(milliseconds(300));
+    auto take = rig.hub->startTake("calibration");
+    ASSERT_TRUE(take.ok()) << take.error().message;
+    EXPECT_FALSE(rig.hub->calibrateBody(body::ReferencePoseKind::T, -seconds(1)).ok());
+    ASSERT_TRUE(rig.hub->calibrateBody(body::ReferencePoseKind::T, milliseconds(500)).ok());
+    const auto waitFor = [&](body::CalibrationStatus::State want) {
+        for (int i = 0; i < 400; ++i) {
+            const HubState s = rig.hub->state();
+            if (s.calibrationStatus.state == want) {
+                return s;
+            }
+            std::this_thread::sleep_for(milliseconds(25));
+        }
+        return rig.hub->state();
+    };
+    const HubState done = waitFor(body::CalibrationStatus::State::Done);
+    ASSERT_EQ(done.calibrationStatus.state, body::CalibrationStatus::State::Done)
+        << done.calibrationStatus.message;
+    EXPECT_EQ(done.calibrationStatus.method, body::CalibrationMethod::TPose);
+    EXPECT_TRUE(done.bodyCalibrated);
+
+    // T+N needs the arms to go from horizontal to hanging between the two moments: the subject
+    // of this suit stands still, so it fails, says why, and the T-pose calibration stays.
+    ASSERT_TRUE(rig.hub->calibrateBodyTPlusN(milliseconds(100), milliseconds(1500)).ok());
+    const HubState failed = waitFor(body::CalibrationStatus::State::Failed);
+    ASSERT_EQ(failed.calibrationStatus.state, body::CalibrationStatus::State::Failed);
+    EXPECT_EQ(failed.calibrationStatus.method, body::CalibrationMethod::TPlusN);
+    EXPECT_NE(failed.calibrationStatus.message.find("between the poses"), std::string::npos)
+        << failed.calibrationStatus.message;
+    EXPECT_TRUE(failed.bodyCalibrated);
+
+    ASSERT_TRUE(rig.hub->headingReset().ok());
+    ASSERT_TRUE(waitForRecords(*rig.hub, rig.hub->state().take->records + 400));
+    ASSERT_TRUE(rig.hub->stopTake().ok());
+    rig.hub->requestStop();
+    (void)rig.hub->wait();
+
+    const TakeContents c = readTake(take->path);
+    EXPECT_TRUE(hasEvent(c, cap::EventKind::Command, "calibrate tpose in 0.5 s"));
+    EXPECT_TRUE(hasEvent(c, cap::EventKind::Command, "heading reset"));
+    int calibrated = 0;
+    int headingResets = 0;
+    for (const auto& [kind, text] : c.events) {
+        calibrated += kind == cap::EventKind::Calibrated;
+        headingResets += kind == cap::EventKind::HeadingReset;
+    }
+    EXPECT_EQ(calibrated, 1);  // the T-pose; the T+N failed
+    EXPECT_EQ(headingResets, 1);
+}
+
 // The stepped mode drives the same pipeline (recorder, fusion, body) on one thread: twice from
 // the same start it records the same records, bit for bit.
 TEST(Hub, SteppedRunsRecordTheSameRecordsEveryTime) {
