@@ -6,6 +6,8 @@
 #include <limits>
 #include <optional>
 
+#include <type_traits>
+
 #include <gtest/gtest.h>
 
 #include "fusion/orientation_filter.h"
@@ -184,8 +186,15 @@ TYPED_TEST(FilterInputTest, AnImplausibleKnownAccelerationIsTakenAsUnknown) {
                     fromDoubleVec<typename TypeParam::Mag>(x.magUt.x(), x.magUt.y(), x.magUt.z()));
             }
             ASSERT_TRUE(finite(this->quat(f))) << bad.transpose() << ", sample " << i;
-            ASSERT_EQ(this->quat(f).coeffs(), this->quat(unknown).coeffs())
-                << bad.transpose() << ", sample " << i;
+            if constexpr (std::is_same_v<TypeParam, FloatTypes>) {
+                // The same arithmetic, but the compiler may fuse the multiply-adds (FMA on ARM)
+                // differently where it knows the acceleration is zero: equal to float rounding.
+                ASSERT_TRUE(this->quat(f).coeffs().isApprox(this->quat(unknown).coeffs(), 1e-6))
+                    << bad.transpose() << ", sample " << i;
+            } else {
+                ASSERT_EQ(this->quat(f).coeffs(), this->quat(unknown).coeffs())
+                    << bad.transpose() << ", sample " << i;
+            }
         }
         EXPECT_EQ(f.rejections().linAcc, 1U) << bad.transpose();
         EXPECT_EQ(f.rejections().samples(), 0U) << bad.transpose();
