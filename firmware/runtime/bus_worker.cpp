@@ -147,7 +147,7 @@ void BusWorker::start(const ThreadPolicy& policy) {
 }
 
 void BusWorker::stop() {
-    if (running_.exchange(false)) {
+    if (running_.exchange(false) || thread_.joinable()) {
         // A worker asleep on a simulated clock paced far below real time would sleep on for
         // seconds (one sample period can be minutes at --speed 0.001).
         clock_.interrupt();

@@ -74,6 +74,11 @@ public:
     // A thread that runs runOnce() until stop(), with the given scheduling.
     void start(const ThreadPolicy& policy = {});
     void stop();
+    // Asks the thread to stop after its current pass without waiting for it (stop() then joins
+    // it): a capture asks every worker before it interrupts the clock, so that no worker spins on
+    // an interrupted clock's sleeps while another is being joined - with SCHED_FIFO workers on
+    // a two-core board, two such spinners would keep the joined one from ever running.
+    void requestStop() { running_.store(false, std::memory_order_relaxed); }
 
     SampleRing& samples() { return samples_; }
     EventRing& events() { return events_; }

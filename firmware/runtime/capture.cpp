@@ -114,7 +114,13 @@ void Capture::pipelineLoop(Timestamp endAt) {
 }
 
 void Capture::end(Timestamp now) {
-    // The workers may sleep on a simulated clock paced far below real time.
+    // Every worker told first, then the clock interrupted (they may sleep on a simulated clock
+    // paced far below real time), then each joined: a worker whose sleeps the interrupt ends
+    // must not be left spinning through them while another is joined (with SCHED_FIFO workers
+    // and fewer cores than spinners, the joined one would never run again).
+    for (auto& w : workers_) {
+        w->requestStop();
+    }
     clock_.interrupt();
     for (auto& w : workers_) {
         w->stop();

@@ -400,6 +400,20 @@ TEST(CliRun, AnySpeedStopsOnSigtermWithinASecond) {
     }
 }
 
+TEST(CliRun, ARealTimeRunOnOneCoreStopsAtItsDuration) {
+    // SCHED_FIFO capture threads on one core. The stop used to interrupt the clock and then join
+    // the workers one by one: the others, their sleeps ended by the interrupt, spun at real-time
+    // priority and the one being joined never ran again (a 10-minute --realtime 50 run on two
+    // cores never ended). Without the permission for real-time scheduling caphub warns and runs
+    // on the normal scheduler (CI runs as root, so there it is real time).
+    const CliRun r = shell("timeout -s KILL 60 taskset -c 0 " + std::string(CAPHUB_BINARY) +
+                           " run --board sim-suit --rest --duration 2 --realtime 50 --no-record "
+                           "--no-preview --status-file " +
+                           ::testing::TempDir() + "caphub-rt-status.json");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find(" dropped"), std::string::npos) << r.output;
+}
+
 TEST(CliRun, AVeryFastRunStopsAtItsDuration) {
     // 20,000 simulated seconds at 1e5: 0.2 s of real time. Before the fix it never ended; the
     // capture itself (not the start-up) must end within a second of its duration.
