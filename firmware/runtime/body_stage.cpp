@@ -77,15 +77,18 @@ void BodyStage::onSample(const SensorSample& s) {
             record(t, events);
         }
     }
-    // Poses on a fixed grid of the output rate: every grid point the newest sample has passed
-    // gets its pose (samples of several buses arrive interleaved, so the newest time can jump by
-    // more than a period).
-    while (const std::optional<Timestamp> g = tracker_.due(t)) {
+    // Poses on a fixed grid of the output rate, solved at the watermark: a grid point gets its
+    // pose once every live sensor, whatever bus it is on, has reported past it (a sensor whose
+    // bus stalls is declared late and left out), so that no bus's orientations are carried on
+    // past their samples while another's are measured. The watermark can pass several grid
+    // points at once.
+    const std::optional<Timestamp> through = tracker_.watermark(t);
+    while (const std::optional<Timestamp> g = through ? tracker_.due(*through) : std::nullopt) {
         const body::TrackedPose& p = tracker_.solveAt(*g);
         if (p.aidEnuMps2) {
             fusion_.setBodyAcceleration(*p.aidEnuMps2);
         }
-        if (records_ != nullptr) {
+        if (records_ != nullptr || feed_ != nullptr) {
             // A segment not measured (its sensor, or the one it follows, out) keeps the rotation
             // of the last pose that measured it, and is flagged: held visibly, never frozen or
             // snapped to a default without a word.
@@ -96,10 +99,37 @@ void BodyStage::onSample(const SensorSample& s) {
                     jointSeen_[j] = jointSeen_[j] || (notMeasured >> j & 1u) == 0;
                 }
             }
-            records_->pose(p.t, p.pose->positionM[0].cast<float>(), joints_, notMeasured);
+            const Eigen::Vector3f root = p.pose->positionM[0].cast<float>();
+            if (records_ != nullptr) {
+                records_->pose(p.t, root, joints_, notMeasured);
+            }
+            if (feed_ != nullptr) {
+                publish(p, t, notMeasured);
+            }
         }
         latency_.add(clock_.now() - t);
     }
+}
+
+void BodyStage::publish(const body::TrackedPose& p, Timestamp newest, std::uint32_t notMeasured) {
+    frame_.serial += 1;
+    frame_.t = p.t;
+    frame_.newestSampleT = newest;
+    frame_.rootM = p.pose->positionM[0].cast<float>();
+    frame_.notMeasured = notMeasured;
+    frame_.bodyCalibrated = tracker_.calibrated();
+    // The world orientations from the joints as recorded (held ones included), so that the
+    // two agree; the joint centres are the solver's.
+    for (std::size_t j = 0; j < joints_.size(); ++j) {
+        frame_.local[j] = joints_[j];
+        const int parent = body::parentOf(static_cast<int>(j));
+        frame_.world[j] =
+            parent < 0 ? joints_[j]
+                       : (frame_.world[static_cast<std::size_t>(parent)] * joints_[j]).normalized();
+        frame_.positionM[j] = p.pose->positionM[j].cast<float>();
+    }
+    frame_.publishedT = clock_.now();
+    feed_->publish(frame_);
 }
 
 void BodyStage::onEvent(const RuntimeEvent& e) {

@@ -12,6 +12,7 @@
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/latency_window.h"
+#include "firmware/runtime/pose_feed.h"
 #include "firmware/runtime/record_sink.h"
 #include "fusion/body/body_tracker.h"
 
@@ -50,6 +51,10 @@ public:
     // held of it is stale.
     void onEvent(const RuntimeEvent& e) override;
 
+    // Publish every pose solved from now on to the feed (the live consumers); call before the
+    // capture starts.
+    void publishTo(PoseFeed& feed) { feed_ = &feed; }
+
     bool calibrated() const { return tracker_.calibrated(); }
     const body::BodyCalibration& calibration() const { return tracker_.calibration(); }
     // Why a requested calibration failed (empty when it did not).
@@ -70,9 +75,12 @@ public:
 
 private:
     void record(Timestamp t, const body::TrackerEvents& events);
+    void publish(const body::TrackedPose& p, Timestamp newest, std::uint32_t notMeasured);
 
     FusionStage& fusion_;
     RecordSink* records_;
+    PoseFeed* feed_ = nullptr;
+    PoseFrame frame_;  // the latest published
     Clock& clock_;
     Options options_;
     body::BodyTracker tracker_;

@@ -47,11 +47,15 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
       fusion_(board, &recorder_, options_.calibrations),
       body_(board, fusion_, &recorder_, clock, options_.body) {
     capture_.setThreadPolicy(options_.threads);
+    body_.publishTo(poses_);
     // The order is the data's: the recorder takes the raw sample before fusion, fusion's
     // orientation before the body, the body's pose before the consumers.
     capture_.addStage(recorder_);
     capture_.addStage(fusion_);
     capture_.addStage(body_);
+    for (PipelineStage* stage : options_.stages) {
+        capture_.addStage(*stage);
+    }
     if (!options_.statusPath.empty()) {
         status_ =
             std::make_unique<StatusStage>(board, capture_, &recorder_, options_.statusPath, clock);
@@ -62,7 +66,7 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
             previewError_ = "no skin to render";
         } else {
             preview_ =
-                std::make_unique<PreviewStage>(board, body_, std::move(*options_.previewSkin),
+                std::make_unique<PreviewStage>(board, poses_, std::move(*options_.previewSkin),
                                                std::move(options_.previewSinks), options_.preview);
             capture_.addStage(*preview_);
         }

@@ -19,6 +19,7 @@
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/pose_feed.h"
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
 #include "firmware/runtime/status_stage.h"
@@ -45,6 +46,10 @@ struct HubOptions {
     std::optional<render::Skin> previewSkin;
     render::SinkSet previewSinks;
     PreviewStage::Options preview;
+    // More stages, run after the body (and before status and preview): consumers that must see
+    // every pose on the pipeline thread (an evaluation scoring each pose against the truth,
+    // from a queue of the pose feed that it empties on each sample). Not owned.
+    std::vector<PipelineStage*> stages;
     // Threaded (a capture in real time) or stepped (the virtual suit on a stepped clock:
     // deterministic, as fast as the machine allows; run with runStepped()).
     Capture::Mode mode = Capture::Mode::Threaded;
@@ -109,6 +114,9 @@ public:
     Capture& capture() { return capture_; }
     FusionStage& fusion() { return fusion_; }
     BodyStage& body() { return body_; }
+    // Every pose the body solves, for consumers off the pipeline thread (streams, the control
+    // plane): the latest, or a queue of every one.
+    PoseFeed& poses() { return poses_; }
     RecorderStage& recorder() { return recorder_; }
     StatusStage* status() { return status_.get(); }
     PreviewStage* preview() { return preview_.get(); }
@@ -128,6 +136,7 @@ private:
     RecorderStage recorder_;
     FusionStage fusion_;
     BodyStage body_;
+    PoseFeed poses_;
     std::unique_ptr<StatusStage> status_;
     std::unique_ptr<PreviewStage> preview_;
     std::string previewError_;

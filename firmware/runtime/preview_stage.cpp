@@ -6,9 +6,9 @@
 
 namespace caphub::firmware {
 
-PreviewStage::PreviewStage(const board::Board& board, const BodyStage& body, render::Skin skin,
+PreviewStage::PreviewStage(const board::Board& board, const PoseFeed& poses, render::Skin skin,
                            render::SinkSet sinks, const Options& options)
-    : body_(body),
+    : poses_(poses),
       skin_(std::move(skin)),
       sinks_(std::move(sinks)),
       options_(options),
@@ -46,26 +46,30 @@ void PreviewStage::onSample(const SensorSample& s) {
         first_ = t;
         next_ = t;
     }
-    if (t < next_ || body_.poses() == lastPoses_) {
+    if (t < next_ || poses_.published() == lastPoses_) {
         return;
     }
     next_ = t + period_;
-    lastPoses_ = body_.poses();
     // Never wait for the renderer: if it holds the slot, this frame is skipped.
     std::unique_lock lock(mutex_, std::try_to_lock);
     if (!lock.owns_lock()) {
         skipped_.fetch_add(1, std::memory_order_relaxed);
         return;
     }
-    const body::Pose& pose = body_.pose();
+    lastPoses_ = poses_.latest(pose_);
     for (std::size_t i = 0; i < slot_.pose.qWorld.size(); ++i) {
-        slot_.pose.qWorld[i] = pose.qWorld[i];
+        slot_.pose.qWorld[i] = pose_.world[i].cast<double>();
     }
-    slot_.pose.pelvisM = pose.positionM[0];
+    slot_.pose.pelvisM = pose_.rootM.cast<double>();
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
-        slot_.sensors[i] = sensors_[i] == render::SensorState::Uncalibrated && body_.calibrated()
-                               ? render::SensorState::Ok
-                               : sensors_[i];
+        // A segment the pose did not measure (its sensor out) is drawn as lost, whatever the
+        // events said last.
+        const bool measured = (pose_.notMeasured >> i & 1u) == 0;
+        slot_.sensors[i] =
+            !measured && sensors_[i] != render::SensorState::None ? render::SensorState::Lost
+            : sensors_[i] == render::SensorState::Uncalibrated && pose_.bodyCalibrated
+                ? render::SensorState::Ok
+                : sensors_[i];
     }
     slot_.timeS = toSeconds(t - *first_);
     ++slot_.serial;

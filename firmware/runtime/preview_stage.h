@@ -13,8 +13,8 @@
 #include <thread>
 
 #include "board/board.h"
-#include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/pose_feed.h"
 #include "render/renderer.h"
 #include "render/sinks.h"
 #include "render/skin.h"
@@ -28,9 +28,10 @@ public:
         render::RenderOptions render;
     };
 
-    // body must be added to the capture before this stage. The skin is fitted to
-    // board.subject (render/skin_fit.h).
-    PreviewStage(const board::Board& board, const BodyStage& body, render::Skin skin,
+    // Draws the poses published to `poses` (the body stage's feed; the body stage must be added
+    // to the capture before this stage). The skin is fitted to board.subject
+    // (render/skin_fit.h).
+    PreviewStage(const board::Board& board, const PoseFeed& poses, render::Skin skin,
                  render::SinkSet sinks, const Options& options);
     ~PreviewStage() override;
 
@@ -54,7 +55,8 @@ private:
 
     void renderLoop();
 
-    const BodyStage& body_;
+    const PoseFeed& poses_;
+    PoseFrame pose_;  // the latest taken from the feed
     render::Skin skin_;
     render::SinkSet sinks_;
     Options options_;

@@ -273,6 +273,27 @@ std::optional<Timestamp> BodyTracker::latestUpdate(int sensor) const {
     return held_[static_cast<std::size_t>(sensor)].latestT;
 }
 
+std::optional<Timestamp> BodyTracker::watermark(Timestamp newest) const {
+    constexpr Duration kMinLate = std::chrono::milliseconds(10);
+    std::optional<Timestamp> least;
+    for (std::size_t i = 0; i < held_.size(); ++i) {
+        const HeldOrientation& h = held_[i];
+        if (!online_[i] || h.count == 0) {
+            continue;
+        }
+        if (h.count == 2) {
+            const Duration late = std::max((h.latestT - h.previousT) * 5 / 2, kMinLate);
+            if (newest - h.latestT > late) {
+                continue;
+            }
+        }
+        if (!least || h.latestT < *least) {
+            least = h.latestT;
+        }
+    }
+    return least;
+}
+
 CalibrationStatus BodyTracker::calibrationStatus() const {
     CalibrationStatus s;
     s.state = state_;

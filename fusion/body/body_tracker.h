@@ -99,11 +99,10 @@ public:
     TrackerEvents update(const SensorUpdate& u);
 
     // The pose grid: the earliest grid time not yet solved when every sensor has reported up to
-    // `through` (today the newest sample's time; a watermark - the least of the live sensors'
-    // latest times - works the same), or none. The grid starts at the first update, or at the
-    // first body calibration when poses wait for one; after a gap of ten periods it restarts at
-    // `through`. The update that completes the first calibration solves nothing: the grid's
-    // first point, its time, is due from the next update on.
+    // `through` (the watermark() of the newest update), or none. The grid starts at the first
+    // update, or at the first body calibration when poses wait for one; after a gap of ten periods
+    // it restarts at `through`. The update that completes the first calibration solves nothing: the
+    // grid's first point, its time, is due from the next update on.
     std::optional<Timestamp> due(Timestamp through);
     // The pose at t, from every sensor's orientations interpolated to t (carried on past a
     // sensor's latest sample at its rate for at most one sample interval). Solving at or past the
@@ -128,6 +127,12 @@ public:
     bool sensorOnline(int sensor) const;
     // A sensor's latest update time, none before its first or while it is out (for a watermark).
     std::optional<Timestamp> latestUpdate(int sensor) const;
+    // How far every live sensor has reported, given the newest update's time: the least of the
+    // online sensors' latest update times, leaving out a sensor that is late (its latest update
+    // more than 2.5 of its sample intervals, and at least 10 ms, behind `newest`: its bus
+    // stalled) - the time up to which a pose can be solved from measured orientations on every
+    // bus. None before any update.
+    std::optional<Timestamp> watermark(Timestamp newest) const;
 
     // Poses are solved: a body calibration is in use, or the nominal mountings are allowed.
     bool calibrated() const { return calibrated_; }

@@ -409,6 +409,50 @@ TEST(BodyTracker, ASensorThatStopsReportingIsInvalidOnceStale) {
     EXPECT_EQ(lastValid, testing::kAll & ~bit(S::LForearm));
 }
 
+TEST(BodyTracker, TheWatermarkIsTheLeastLiveSensorsTimeLeavingOutALateOne) {
+    // The sensors on two "buses": the left forearm's reports 8 ms behind the others. The
+    // watermark is its time while it keeps up; when it stops (its bus stalls) it is declared
+    // late after 2.5 of its intervals, and the watermark moves on with the others.
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    const Pose upright;
+    const int forearm = suit.sensor(S::LForearm);
+    EXPECT_FALSE(tracker.watermark(at(0ms)).has_value());
+    const auto one = [&](int sensor, Timestamp t) {
+        const SensorFrame f = testing::sensorsFor(upright, suit.nominal(), testing::kFullSuit, 0);
+        SensorUpdate u;
+        u.sensor = sensor;
+        u.t = t;
+        u.qEnuSensor = f.qEnuSensor[static_cast<std::size_t>(idx(
+                                        suit.sensors[static_cast<std::size_t>(sensor)].segment))]
+                           .cast<float>();
+        u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f);
+        tracker.update(u);
+    };
+    for (int k = 0; k < 10; ++k) {
+        feed(tracker, suit, at(kSample * k), upright, 0, suit.nominal(), nullptr, forearm);
+        if (k > 0) {
+            one(forearm, at(kSample * k - 8ms));
+        }
+        if (k > 1) {
+            ASSERT_TRUE(tracker.watermark(at(kSample * k)).has_value());
+            EXPECT_EQ(*tracker.watermark(at(kSample * k)), at(kSample * k - 8ms)) << k;
+        }
+    }
+    // The forearm's latest is at 82 ms; at 100 ms it is 18 ms behind (< 25 ms): still waited
+    // for. At 110 ms (28 ms behind) it is late: the others' 110 ms is the watermark.
+    feed(tracker, suit, at(100ms), upright, 0, suit.nominal(), nullptr, forearm);
+    EXPECT_EQ(*tracker.watermark(at(100ms)), at(82ms));
+    feed(tracker, suit, at(110ms), upright, 0, suit.nominal(), nullptr, forearm);
+    EXPECT_EQ(*tracker.watermark(at(110ms)), at(110ms));
+    // Offline sensors are not waited for either; back and reporting, it is again.
+    tracker.setSensorOnline(forearm, false);
+    EXPECT_EQ(*tracker.watermark(at(110ms)), at(110ms));
+    tracker.setSensorOnline(forearm, true);
+    one(forearm, at(105ms));
+    EXPECT_EQ(*tracker.watermark(at(110ms)), at(105ms));
+}
+
 TEST(BodyTracker, AFailedCalibrationSaysWhyAndKeepsTheOneInUse) {
     // A calibration whose window passes before any sensor reported has nothing to average.
     const Suit suit;

@@ -261,6 +261,8 @@ TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
     std::filesystem::remove_all(dir);
     firmware::FusionStage fusion(b, nullptr);
     firmware::BodyStage bodyStage(b, fusion, nullptr, clock, firmware::BodyStage::Options{});
+    firmware::PoseFeed poses;
+    bodyStage.publishTo(poses);
     render::SinkSet sinks;
     sinks.add(render::makePngFolderSink(dir));
     auto skin = render::loadDefaultSkin();
@@ -268,7 +270,7 @@ TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
     firmware::PreviewStage::Options po;
     po.fps = 5;
     {
-        firmware::PreviewStage preview(b, bodyStage, std::move(*skin), std::move(sinks), po);
+        firmware::PreviewStage preview(b, poses, std::move(*skin), std::move(sinks), po);
         firmware::SteppedCapture capture(*suit, clock);
         capture.runUntil(clock.now() + 3s, [&](const firmware::SensorSample& s) {
             fusion.onSample(s);

@@ -292,6 +292,80 @@ TEST(Hub, SteppedRunsRecordTheSameRecordsEveryTime) {
     EXPECT_EQ(a, b);
 }
 
+// The pose feed hands the consumers off the pipeline thread (streams, the control plane) every
+// pose the body solves, the same as recorded, in order; the latest-value slot holds the last.
+TEST(Hub, PublishesEveryRecordedPoseToTheFeed) {
+    auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+    ASSERT_TRUE(loaded.ok());
+    const board::Board board = *loaded.board;
+    SimulatedClock clock(timestampFromNs(1'000'000'000));
+    auto suit = board::sim::buildVirtualSuit(board, clock, nullptr);
+    ASSERT_TRUE(suit.ok());
+    const fs::path path = fs::path(::testing::TempDir()) / "caphub-hub-feed.cap";
+    fs::remove(path);
+    HubOptions o;
+    o.mode = Capture::Mode::Stepped;
+    auto writer = RecordingWriter::create(path.string(), "");
+    ASSERT_TRUE(writer.ok());
+    o.recordFromStart = std::move(*writer);
+    Hub hub(board, clock, *suit, std::move(o));
+    PoseFrame none;
+    EXPECT_EQ(hub.poses().latest(none), 0u);
+    const std::shared_ptr<PoseQueue> queue = hub.poses().subscribe();
+    const std::shared_ptr<PoseQueue> dropped = hub.poses().subscribe();
+    hub.poses().unsubscribe(dropped);
+    hub.runStepped(seconds(2));
+
+    std::vector<PoseFrame> fed;
+    PoseFrame f;
+    while (queue->pop(f)) {
+        fed.push_back(f);
+    }
+    EXPECT_EQ(queue->dropped(), 0u);
+    PoseFrame g;
+    EXPECT_FALSE(dropped->pop(g));
+    ASSERT_GT(fed.size(), 50u);
+    EXPECT_EQ(fed.size(), hub.body().poses());
+    PoseFrame latest;
+    EXPECT_EQ(hub.poses().latest(latest), fed.back().serial);
+    EXPECT_EQ(latest.t, fed.back().t);
+
+    auto reader = RecordingReader::open(path.string());
+    ASSERT_TRUE(reader.ok());
+    RecordView v;
+    std::size_t i = 0;
+    while ((*reader)->next(v) == 1) {
+        if (v.type != cap::RecordType::Pose) {
+            continue;
+        }
+        Eigen::Vector3f root;
+        std::vector<Eigen::Quaternionf> joints;
+        std::uint32_t notMeasured = 0;
+        ASSERT_TRUE(decodePose(v, root, joints, &notMeasured));
+        ASSERT_EQ(joints.size(), static_cast<std::size_t>(body::kSegmentCount));
+        ASSERT_LT(i, fed.size());
+        const PoseFrame& p = fed[i];
+        EXPECT_EQ(p.serial, i + 1);
+        EXPECT_EQ(p.t, v.t);
+        EXPECT_EQ(p.notMeasured, notMeasured);
+        EXPECT_LT((p.rootM - root).norm(), 1e-6f);
+        for (std::size_t j = 0; j < joints.size(); ++j) {
+            EXPECT_NEAR(std::abs(p.local[j].dot(joints[j])), 1.0f, 1e-6f) << "pose " << i;
+        }
+        // The world orientations compose the joints down the tree.
+        EXPECT_NEAR(std::abs(p.world[0].dot(p.local[0])), 1.0f, 1e-6f);
+        for (int j = 1; j < body::kSegmentCount; ++j) {
+            const auto u = static_cast<std::size_t>(j);
+            const Eigen::Quaternionf composed =
+                p.world[static_cast<std::size_t>(body::parentOf(j))] * p.local[u];
+            EXPECT_NEAR(std::abs(composed.dot(p.world[u])), 1.0f, 1e-5f) << "segment " << j;
+        }
+        EXPECT_LE(p.newestSampleT, p.publishedT);
+        ++i;
+    }
+    EXPECT_EQ(i, fed.size());
+}
+
 TEST(Hub, TakeNamesAreCheckedAndDated) {
     const std::time_t when = 1'700'000'000;
     auto plain = takeFileName("", when);
