@@ -1,18 +1,15 @@
 // caphub run: capture from a suit - the hub's real buses, or the virtual suit when the board's
 // buses are simulated - recording every sample and event, until Ctrl-C or a duration.
-#include <csignal>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include <fmt/format.h>
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
-#include "firmware/calibration_file.h"
 #include "firmware/cli/app.h"
+#include "firmware/cli/capture_setup.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
@@ -27,18 +24,6 @@ namespace caphub::firmware {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::atomic<Capture*> gCapture{nullptr};
-std::atomic<bool> gStopSignalled{false};
-
-// SIGINT/SIGTERM from the moment the recording is created: the capture stops cleanly (the
-// recording stays complete), also when the signal comes before the capture has started.
-extern "C" void onStopSignal(int) {
-    gStopSignalled.store(true);
-    if (Capture* c = gCapture.load()) {
-        c->requestStop();
-    }
-}
 
 struct RunOptions {
     std::string board = "sim-suit";
@@ -132,78 +117,26 @@ int run(const RunOptions& o) {
     }
     // The pose is held from the start until the orientations have been averaged, plus a margin.
     const double holdS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
-    const bool sim = board::allBusesSimulated(b);
-    FusionStage::Calibrations calibrations;
-    std::string calibrationText;
-    if (!o.calibration.empty()) {
-        auto set = readCalibrationFile(o.calibration);
-        if (!set) {
-            fmt::print(stderr, "caphub run: {}\n", set.error().message);
-            return kExitUsage;
-        }
-        std::vector<std::string> unknown;
-        calibrations = calibrationsFor(b, *set, &unknown);
-        for (const auto& name : unknown) {
-            log::logger(log::Category::Firmware)
-                .warn("{}: sensor '{}' is not on board '{}'; its calibration is unused",
-                      o.calibration, name, b.name);
-        }
-        calibrationText = formatCalibration(*set);
+    CaptureSetupOptions so;
+    so.bvh = o.bvh;
+    so.map = o.map;
+    so.profile = o.profile;
+    so.seed = o.seed;
+    so.rest = o.rest;
+    so.speed = o.speed;
+    so.leadInPose = bodyOptions.calibrate;
+    so.holdS = holdS;
+    so.calibration = o.calibration;
+    auto setup = buildCaptureSetup(b, so);
+    if (!setup) {
+        fmt::print(stderr, "caphub run: {}\n", setup.error().message);
+        return setup.error().code == EINVAL ? kExitUsage : kExitRuntime;
     }
-
-    std::unique_ptr<Clock> clock;
-    if (sim) {
-        clock = std::make_unique<SimulatedClock>(MonotonicClock().now(), o.speed);
-    } else {
-        clock = std::make_unique<MonotonicClock>();
-    }
-    board::sim::SourceFactory sources;
-    std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)> placementOf;
-    std::string motionText = "at rest";
-    if (sim && !o.rest) {
-        board::sim::ClipOptions clip;
-        clip.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
-        clip.map = o.map;
-        clip.seed = o.seed;
-        if (bodyOptions.calibrate) {
-            // The virtual subject first stands in the calibration pose.
-            clip.tposeHoldS = holdS;
-            clip.leadInPose = body::referencePose(*bodyOptions.calibrate);
-        }
-        const auto profile = board::sim::parseErrorProfile(o.profile);
-        if (!profile) {
-            fmt::print(stderr, "caphub run: unknown profile '{}' (ideal, typical or harsh)\n",
-                       o.profile);
-            return kExitUsage;
-        }
-        clip.profile = *profile;
-        if (clip.bvh.empty()) {
-            log::logger(log::Category::Sim)
-                .warn("no motion clip found (give --bvh FILE): the virtual suit stands still");
-        } else {
-            auto suitMotion = board::sim::clipSources(clip, clock->now());
-            if (!suitMotion) {
-                fmt::print(stderr, "caphub run: {}\n", suitMotion.error().message);
-                return kExitUsage;
-            }
-            sources = suitMotion->sources;
-            placementOf = suitMotion->placement;
-            motionText = fmt::format("{} ({:.1f} s, {} profile)", clip.bvh.filename().string(),
-                                     static_cast<double>(suitMotion->motion->durationNs()) * 1e-9,
-                                     o.profile);
-        }
-    }
-    auto suit =
-        sim ? board::sim::buildVirtualSuit(b, *clock, sources) : board::openLinuxSuit(b, *clock);
-    if (!suit) {
-        fmt::print(stderr, "caphub run: {}\n", suit.error().message);
-        return kExitRuntime;
-    }
-
-    std::signal(SIGINT, onStopSignal);
-    std::signal(SIGTERM, onStopSignal);
+    const bool sim = setup->sim;
+    // From the moment the recording is created, a signal stops the capture cleanly.
+    StopSignals signals;
     HubOptions ho;
-    ho.calibrations = std::move(calibrations);
+    ho.calibrations = setup->calibrations;
     ho.body = bodyOptions;
     ho.threads = ThreadPolicy::fromBoard(b.runtime);
     if (o.realtime >= 0) {
@@ -225,14 +158,12 @@ int run(const RunOptions& o) {
         }
         recordingPath = !o.record.empty() ? fs::path(o.record)
                                           : dir / fmt::format("{}-{}.cap", timestampName(), b.name);
-        std::ifstream in(b.path);
-        std::stringstream text;
-        text << in.rdbuf();
         ho.writer.syncInterval = std::chrono::milliseconds(o.syncMs);
-        auto writer = RecordingWriter::create(
-            recordingPath.string(),
-            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText),
-            ho.writer);
+        auto writer =
+            RecordingWriter::create(recordingPath.string(),
+                                    recordingMetadata(b, setup->boardText, versionLine(),
+                                                      o.calibration, setup->calibrationText),
+                                    ho.writer);
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
             return kExitRuntime;
@@ -254,7 +185,7 @@ int run(const RunOptions& o) {
             }
         }
     }
-    Hub hub(b, *clock, *suit, std::move(ho));
+    Hub hub(b, *setup->clock, *setup->suit, std::move(ho));
     if (bodyOptions.calibrate && !sim) {
         fmt::print("stand still in the {} for the first {:.0f} s\n",
                    bodyOptions.calibrate == body::ReferencePoseKind::T ? "T-pose" : "N-pose",
@@ -262,17 +193,12 @@ int run(const RunOptions& o) {
     }
 
     fmt::print("caphub run: {} sensors on {} buses of '{}' ({}){}\n", b.sensors.size(),
-               b.buses.size(), b.name, sim ? "virtual suit, motion " + motionText : "hub buses",
+               b.buses.size(), b.name,
+               sim ? "virtual suit, motion " + setup->motionText : "hub buses",
                o.durationS > 0 ? fmt::format(", {:g} s", o.durationS) : ", Ctrl-C to stop");
-    gCapture.store(&hub.capture());
-    if (gStopSignalled.load()) {
-        hub.requestStop();  // signalled while the hub was being built: stop at once
-    }
+    signals.arm(hub.capture());
     hub.start(durationFromSeconds(o.durationS));
     const CaptureStats stats = hub.wait();
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
-    gCapture.store(nullptr);
 
     const double seconds = toSeconds(stats.elapsed);
     fmt::print("\n{:<12} {:>9} {:>9} {:>7} {:>7}\n", "sensor", "samples", "rate Hz", "lost",
@@ -288,7 +214,7 @@ int run(const RunOptions& o) {
         }
     }
     fmt::print("\n{} orientation updates", hub.fusion().updates());
-    printBody(hub.body(), b, placementOf);
+    printBody(hub.body(), b, setup->placementOf);
     if (const PreviewStage* preview = hub.preview()) {
         const std::string err = preview->error();
         fmt::print("\npreview: {} frames rendered, {} skipped{}", preview->framesRendered(),

@@ -1,0 +1,123 @@
+#include "firmware/cli/capture_setup.h"
+
+#include <atomic>
+#include <csignal>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "firmware/calibration_file.h"
+#include "firmware/cli/data_dir.h"
+#include "hal/core/log.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::atomic<Capture*> gCapture{nullptr};
+std::atomic<bool> gStopSignalled{false};
+
+extern "C" void onStopSignal(int) {
+    gStopSignalled.store(true);
+    if (Capture* c = gCapture.load()) {
+        c->requestStop();
+    }
+}
+
+}  // namespace
+
+Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetupOptions& o) {
+    CaptureSetup s;
+    s.sim = board::allBusesSimulated(b);
+    if (!o.calibration.empty()) {
+        auto set = readCalibrationFile(o.calibration);
+        if (!set) {
+            return Error{EINVAL, set.error().message};
+        }
+        std::vector<std::string> unknown;
+        s.calibrations = calibrationsFor(b, *set, &unknown);
+        for (const auto& name : unknown) {
+            log::logger(log::Category::Firmware)
+                .warn("{}: sensor '{}' is not on board '{}'; its calibration is unused",
+                      o.calibration, name, b.name);
+        }
+        s.calibrationText = formatCalibration(*set);
+    }
+    {
+        std::ifstream in(b.path);
+        std::stringstream text;
+        text << in.rdbuf();
+        s.boardText = text.str();
+    }
+    if (s.sim) {
+        s.clock = std::make_unique<SimulatedClock>(MonotonicClock().now(), o.speed);
+    } else {
+        s.clock = std::make_unique<MonotonicClock>();
+    }
+    board::sim::SourceFactory sources;
+    if (s.sim && !o.rest) {
+        board::sim::ClipOptions clip;
+        clip.bvh = o.bvh.empty() ? defaultMotionClip() : fs::path(o.bvh);
+        clip.map = o.map;
+        clip.seed = o.seed;
+        if (o.leadInPose) {
+            // The virtual subject first stands in the calibration pose.
+            clip.tposeHoldS = o.holdS;
+            clip.leadInPose = body::referencePose(*o.leadInPose);
+        }
+        const auto profile = board::sim::parseErrorProfile(o.profile);
+        if (!profile) {
+            return Error{EINVAL,
+                         fmt::format("unknown profile '{}' (ideal, typical or harsh)", o.profile)};
+        }
+        clip.profile = *profile;
+        if (clip.bvh.empty()) {
+            log::logger(log::Category::Sim)
+                .warn("no motion clip found (give --bvh FILE): the virtual suit stands still");
+        } else {
+            auto suitMotion = board::sim::clipSources(clip, s.clock->now());
+            if (!suitMotion) {
+                return Error{EINVAL, suitMotion.error().message};
+            }
+            sources = suitMotion->sources;
+            s.placementOf = suitMotion->placement;
+            s.motionText = fmt::format("{} ({:.1f} s, {} profile)", clip.bvh.filename().string(),
+                                       static_cast<double>(suitMotion->motion->durationNs()) * 1e-9,
+                                       o.profile);
+        }
+    }
+    auto suit = s.sim ? board::sim::buildVirtualSuit(b, *s.clock, sources)
+                      : board::openLinuxSuit(b, *s.clock);
+    if (!suit) {
+        return Error{suit.error().code == EINVAL ? EIO : suit.error().code, suit.error().message};
+    }
+    s.suit.emplace(std::move(*suit));
+    return s;
+}
+
+StopSignals::StopSignals() {
+    std::signal(SIGINT, onStopSignal);
+    std::signal(SIGTERM, onStopSignal);
+}
+
+StopSignals::~StopSignals() {
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    gCapture.store(nullptr);
+}
+
+void StopSignals::arm(Capture& capture) {
+    gCapture.store(&capture);
+    if (gStopSignalled.load()) {
+        capture.requestStop();  // signalled while the hub was being built: stop at once
+    }
+}
+
+bool StopSignals::signalled() {
+    return gStopSignalled.load();
+}
+
+}  // namespace caphub::firmware
