@@ -8,7 +8,7 @@
 
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/body_stage.h"
-#include "firmware/runtime/stepped_capture.h"
+#include "firmware/runtime/hub.h"
 #include "fusion/body/skeleton.h"
 
 namespace caphub::firmware {
@@ -37,6 +37,54 @@ std::string calibrationName(const BodyStage& stage) {
     }
     return std::string(body::toString(stage.calibration().method));
 }
+
+// Scores each pose the body publishes against the simulation's truth at its time, after the
+// lead-in: a stage after the body, emptying its queue of the pose feed on every sample.
+class PoseScoringStage final : public PipelineStage {
+public:
+    PoseScoringStage(const bs::SegmentTrajectory& trajectory, Timestamp start,
+                     std::int64_t leadInNs)
+        : trajectory_(trajectory), start_(start), leadInNs_(leadInNs) {}
+    // The feed keeps its queue as long as it lives (the Hub's, which goes first).
+    void follow(PoseFeed& feed) { queue_ = feed.subscribe(); }
+    void onSample(const SensorSample&) override { score(); }
+    void onEvent(const RuntimeEvent&) override {}
+    void finish(Timestamp) override { score(); }
+    body::PoseScorer& scorer() { return scorer_; }
+
+private:
+    void score() {
+        if (!queue_) {
+            return;
+        }
+        while (queue_->pop(frame_)) {
+            const std::int64_t tNs = toNs(frame_.t - start_);
+            if (tNs < leadInNs_) {
+                continue;  // the T-pose hold and the blend: not part of the clip
+            }
+            for (int i = 0; i < body::kSegmentCount; ++i) {
+                const auto u = static_cast<std::size_t>(i);
+                trajectory_.evaluate(static_cast<board::Segment>(i), tNs, segment_);
+                truth_.qWorldSegment[u] = segment_.qWorldSegment;
+                truth_.positionM[u] = segment_.positionM;
+                pose_.qLocal[u] = frame_.local[u].cast<double>();
+                pose_.qWorld[u] = frame_.world[u].cast<double>();
+                pose_.positionM[u] = frame_.positionM[u].cast<double>();
+            }
+            scorer_.add(pose_, truth_);
+        }
+    }
+
+    const bs::SegmentTrajectory& trajectory_;
+    Timestamp start_;
+    std::int64_t leadInNs_;
+    std::shared_ptr<PoseQueue> queue_;
+    body::PoseScorer scorer_{body::PoseScorer::RootOrigin::AtFirstFrame};
+    PoseFrame frame_;
+    body::Pose pose_;
+    body::BodyTruth truth_;
+    bs::SegmentState segment_;
+};
 
 }  // namespace
 
@@ -104,44 +152,28 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         return Error{EINVAL, suit.error().message};
     }
 
-    FusionStage fusion(b, nullptr, o.sensorCalibrations);
-    BodyStage bodyStage(b, fusion, nullptr, clock, bodyOptions);
-    SteppedCapture capture(*suit, clock);
-
+    // The Hub of `caphub run` in stepped mode: the same stages on one thread, deterministic;
+    // the scorer is a stage after the body that takes every pose from the feed.
+    HubOptions hubOptions;
+    hubOptions.mode = Capture::Mode::Stepped;
+    hubOptions.calibrations = o.sensorCalibrations;
+    hubOptions.body = bodyOptions;
     EvaluateResult r;
     r.clip = o.bvh.filename().string();
     r.leadInS = static_cast<double>(clip->leadInNs) * 1e-9;
     r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
-    body::PoseScorer scorer(body::PoseScorer::RootOrigin::AtFirstFrame);
-    body::BodyTruth truth;
-    bs::SegmentState seg;
-    std::uint64_t posesSeen = 0;
-    const bs::SegmentTrajectory& trajectory = *clip->trajectory;
-    const auto onSample = [&](const SensorSample& s) {
-        ++r.samples;
-        fusion.onSample(s);
-        bodyStage.onSample(s);
-        if (bodyStage.poses() == posesSeen) {
-            return;
-        }
-        // A sample that passes several grid points solves them all from the same orientations;
-        // the latest of them is scored.
-        posesSeen = bodyStage.poses();
-        const std::int64_t tNs = toNs(bodyStage.poseTime() - start);
-        if (tNs < clip->leadInNs) {
-            return;  // the T-pose hold and the blend: not part of the clip
-        }
-        for (int i = 0; i < body::kSegmentCount; ++i) {
-            const auto u = static_cast<std::size_t>(i);
-            trajectory.evaluate(static_cast<board::Segment>(i), tNs, seg);
-            truth.qWorldSegment[u] = seg.qWorldSegment;
-            truth.positionM[u] = seg.positionM;
-        }
-        scorer.add(bodyStage.pose(), truth);
-    };
+    PoseScoringStage scoring(*clip->trajectory, start, clip->leadInNs);
+    hubOptions.stages.push_back(&scoring);
+    Hub hub(b, clock, *suit, std::move(hubOptions));
+    scoring.follow(hub.poses());
     const auto wallStart = std::chrono::steady_clock::now();
-    capture.runUntil(start + Duration{clip->leadInNs + clip->motion->durationNs()}, onSample);
+    const CaptureStats stats =
+        hub.runStepped(Duration{clip->leadInNs + clip->motion->durationNs()});
     r.wallS = std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
+    r.samples = stats.samples;
+    const BodyStage& bodyStage = hub.body();
+    const FusionStage& fusion = hub.fusion();
+    body::PoseScorer& scorer = scoring.scorer();
 
     if (!bodyStage.calibrationError().empty()) {
         return Error{EIO, "body calibration failed: " + bodyStage.calibrationError()};
