@@ -4,6 +4,7 @@
 #include <GL/osmesa.h>
 // osmesa.h brings GL/gl.h; the 3.3 entry points are declared by glext.h and exported by
 // libOSMesa itself.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <string>
@@ -190,6 +191,17 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Skin& skin, const Rende
     }
     std::unique_ptr<Renderer> r(new Renderer);
     r->options_ = options;
+    {
+        const auto& o = skin.jointOriginsM;
+        const Vec3d pelvis(o[0][0], o[0][1], o[0][2]);
+        double reach = 0;
+        for (const auto& j : o) {
+            reach = std::max(reach, (Vec3d(j[0], j[1], j[2]) - pelvis).norm());
+        }
+        // The joints end at the wrists, the skull's base and the toes: the hands, the top of
+        // the head and the skin's thickness lie up to ~0.3 m beyond them.
+        r->framingRadiusM_ = std::clamp(reach + 0.3, 0.5, 3.0);
+    }
     r->gl_ = std::make_unique<Gl>();
     auto& gl = *r->gl_;
     const int attribs[] = {OSMESA_FORMAT,
@@ -349,29 +361,35 @@ Result<void> Renderer::render(const FrameInput& frame, Image& out, StageTimes* t
                  gl.lines.data(), GL_STREAM_DRAW);
     const std::int64_t t1 = nowNs();
 
-    // Camera.
+    // Camera: looking at the pelvis, wherever the subject is, from the preset's direction, at
+    // the distance that fits the framing sphere into the narrower of the two fields of view.
     const Vec3d pelvis = J[0];
-    Vec3f target(0, 0.9f, 0);
-    Vec3f eye = target + Vec3f(0, 0.2f, 4.3f);
+    const Vec3f target(static_cast<float>(pelvis.x()), static_cast<float>(pelvis.y()),
+                       static_cast<float>(pelvis.z()));
+    Vec3f direction(0, 0.05f, 1);
     switch (options_.camera) {
         case CameraPreset::Front:
-            eye = target + Vec3f(0, 0.2f, 4.3f);
+            direction = Vec3f(0, 0.05f, 1);
             break;
         case CameraPreset::Side:
-            eye = target + Vec3f(4.3f, 0.2f, 0);
+            direction = Vec3f(1, 0.05f, 0);
             break;
         case CameraPreset::Orbit: {
             const float a = static_cast<float>(frame.timeS * 2 * M_PI / 20.0);
-            eye = target + Vec3f(4.6f * std::sin(a), 0.9f, 4.6f * std::cos(a));
+            direction = Vec3f(std::sin(a), 0.2f, std::cos(a));
             break;
         }
         case CameraPreset::Follow:
-            target = Vec3f(static_cast<float>(pelvis.x()), 0.9f, static_cast<float>(pelvis.z()));
-            eye = target + Vec3f(2.2f, 0.5f, 3.5f);
+            direction = Vec3f(2.2f, 0.5f, 3.5f);
             break;
     }
-    const Mat4f viewProj = perspective(static_cast<float>(32.0 * M_PI / 180.0),
-                                       static_cast<float>(w) / static_cast<float>(h), 0.1f, 30.0f) *
+    const double vFov = 32.0 * M_PI / 180.0;
+    const double aspect = static_cast<double>(w) / static_cast<double>(h);
+    const double hFov = 2 * std::atan(std::tan(vFov / 2) * aspect);
+    const double distance = framingRadiusM_ / std::sin(std::min(vFov, hFov) / 2);
+    const Vec3f eye = target + direction.normalized() * static_cast<float>(distance);
+    const Mat4f viewProj = perspective(static_cast<float>(vFov), static_cast<float>(aspect), 0.1f,
+                                       static_cast<float>(distance + 20.0)) *
                            lookAt(eye, target, Vec3f::UnitY());
 
     glViewport(0, 0, w, h);

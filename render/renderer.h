@@ -25,11 +25,14 @@ enum class SensorState : std::uint8_t {
     Uncalibrated,  // yellow
 };
 
+// Every preset follows the subject: it looks at the pelvis from far enough that the whole body
+// (a sphere around the pelvis as large as the skin's reach, whatever the pose) fills the frame,
+// wherever the subject has walked.
 enum class CameraPreset : std::uint8_t {
-    Front,   // facing the subject (from +Z)
-    Side,    // from the subject's left (+X)
-    Orbit,   // circling the capture area, one turn in 20 s
-    Follow,  // front-left, three-quarter view that keeps the pelvis centred
+    Front,   // from the front of the capture area (+Z)
+    Side,    // from its side (+X)
+    Orbit,   // circling the subject, one turn in 20 s
+    Follow,  // front-left, three-quarter view
 };
 
 // "front", "side", "orbit" or "follow"; nothing for another name.
@@ -80,6 +83,9 @@ private:
     std::unique_ptr<Gl> gl_;
     RenderOptions options_;
     std::size_t vertexCount_ = 0;
+    // The radius around the pelvis that holds the whole body in any pose: the skin's farthest
+    // joint from the pelvis in its reference (T) pose, and a margin for the hands and head.
+    double framingRadiusM_ = 1.1;
 };
 
 }  // namespace caphub::render

@@ -107,6 +107,69 @@ TEST(Renderer, SensorStatesAreDrawnInTheirColours) {
     EXPECT_GT(green, 8);
 }
 
+// Wherever the subject walks (here 6 m in front of the origin, and 5 m behind it to the side)
+// and whatever the preset, the whole body is in the frame: the skin's pixels touch no edge and
+// fill a good part of the picture. (The fixed front camera of before showed a close-up of the
+// torso, then nothing, as the subject walked toward it.)
+TEST(Renderer, EveryCameraFramesTheWholeBodyWhereverItIs) {
+    auto skin = loadDefaultSkin();
+    ASSERT_TRUE(skin) << skin.error().message;
+    const auto& o = skin->jointOriginsM[0];
+    for (const Vec3d& offset : {Vec3d(0, 0, 0), Vec3d(0.5, 0, 6.0), Vec3d(-4.0, 0, -5.0)}) {
+        for (const CameraPreset camera :
+             {CameraPreset::Front, CameraPreset::Side, CameraPreset::Orbit, CameraPreset::Follow}) {
+            Skinner sk(*skin);
+            SkinPose pose = fixedPose(*skin);
+            pose.pelvisM = Vec3d(o[0], o[1], o[2]) + offset;
+            sk.setPose(pose);
+            sk.skin();
+            RenderOptions ro;
+            ro.width = 160;
+            ro.height = 120;
+            ro.camera = camera;
+            ro.drawGrid = false;
+            auto r = Renderer::create(*skin, ro);
+            ASSERT_TRUE(r) << r.error().message;
+            FrameInput f;
+            f.vertices = sk.output();
+            f.jointsM = sk.jointPositionsM();
+            f.timeS = 7.0;  // the orbit camera part-way round
+            Image img;
+            ASSERT_TRUE((*r)->render(f, img));
+            if (const char* dir = std::getenv("CAPHUB_RENDER_TEST_OUT")) {
+                (void)writePng(img, std::filesystem::path(dir) /
+                                        ("camera" + std::to_string(static_cast<int>(camera)) + "_" +
+                                         std::to_string(static_cast<int>(offset.x())) + "_" +
+                                         std::to_string(static_cast<int>(offset.z())) + ".png"));
+            }
+            int minX = img.width, maxX = -1, minY = img.height, maxY = -1, count = 0;
+            for (int y = 0; y < img.height; ++y) {
+                for (int x = 0; x < img.width; ++x) {
+                    const auto* p = img.pixel(x, y);
+                    // The skin's colour, lit or shaded: red over green over blue.
+                    if (p[0] > p[1] && p[1] > p[2] && p[0] - p[2] > 25) {
+                        minX = std::min(minX, x);
+                        maxX = std::max(maxX, x);
+                        minY = std::min(minY, y);
+                        maxY = std::max(maxY, y);
+                        ++count;
+                    }
+                }
+            }
+            const std::string where = "camera " + std::to_string(static_cast<int>(camera)) +
+                                      " at " + std::to_string(offset.x()) + ", " +
+                                      std::to_string(offset.z());
+            EXPECT_GT(count, img.width * img.height / 100) << where;
+            EXPECT_GT(minX, 0) << where;
+            EXPECT_LT(maxX, img.width - 1) << where;
+            EXPECT_GT(minY, 0) << where;
+            EXPECT_LT(maxY, img.height - 1) << where;
+            // Not a speck either: the body is at least half the frame's height.
+            EXPECT_GT(maxY - minY, img.height / 2) << where;
+        }
+    }
+}
+
 TEST(Renderer, WrongVertexCountIsAnError) {
     auto skin = loadDefaultSkin();
     ASSERT_TRUE(skin) << skin.error().message;
