@@ -1,5 +1,6 @@
 #include "render/mjpeg_server.h"
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -52,6 +53,8 @@ struct MjpegServer::State {
     std::shared_ptr<const std::vector<std::uint8_t>> jpeg;  // the latest frame
     std::uint64_t sequence = 0;
     bool stopping = false;
+    int maxStreams = 4;
+    std::atomic<int> streams{0};
 };
 
 MjpegServer::MjpegServer() : s_(std::make_unique<State>()) {}
@@ -75,9 +78,23 @@ Result<std::unique_ptr<MjpegServer>> MjpegServer::start(const MjpegOptions& opti
     if (options.port < 0 || options.port > 65535) {
         return Error{EINVAL, fmt::format("MJPEG port {}: expected 0 to 65535", options.port)};
     }
+    if (options.maxStreams < 1 || options.maxStreams > 64) {
+        return Error{EINVAL, fmt::format("MJPEG viewers {}: expected 1 to 64", options.maxStreams)};
+    }
     std::unique_ptr<MjpegServer> m(new MjpegServer);
     State* s = m->s_.get();
     s->quality = options.quality;
+    s->maxStreams = options.maxStreams;
+    // httplib's default pool (8 threads) was taken by eight viewers or eight idle sockets, and
+    // every further request waited forever: threads for the viewers and for the requests, and
+    // short timeouts for connections that send or take nothing.
+    const auto threads = static_cast<std::size_t>(options.maxStreams + kRequestThreads);
+    s->server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+    s->server.set_read_timeout(kIdleTimeoutS, 0);
+    s->server.set_write_timeout(kIdleTimeoutS, 0);
+    s->server.set_keep_alive_timeout(kIdleTimeoutS);
+    s->server.set_keep_alive_max_count(20);
+    s->server.set_payload_max_length(64 * 1024);  // nothing here takes a body
 
     s->server.Get("/", [](const httplib::Request&, httplib::Response& res) {
         res.set_content(
@@ -99,6 +116,15 @@ Result<std::unique_ptr<MjpegServer>> MjpegServer::start(const MjpegOptions& opti
         res.set_content(reinterpret_cast<const char*>(jpeg->data()), jpeg->size(), "image/jpeg");
     });
     s->server.Get("/stream", [s](const httplib::Request&, httplib::Response& res) {
+        if (s->streams.fetch_add(1) >= s->maxStreams) {
+            s->streams.fetch_sub(1);
+            res.status = 503;
+            res.set_header("Retry-After", "5");
+            res.set_content(fmt::format("{} viewers already watch the preview; try /frame.jpg\n",
+                                        s->maxStreams),
+                            "text/plain");
+            return;
+        }
         auto last = std::make_shared<std::uint64_t>(0);
         res.set_chunked_content_provider(
             fmt::format("multipart/x-mixed-replace; boundary={}", kBoundary),
@@ -124,7 +150,8 @@ Result<std::unique_ptr<MjpegServer>> MjpegServer::start(const MjpegOptions& opti
                 return sink.write(head.data(), head.size()) &&
                        sink.write(reinterpret_cast<const char*>(jpeg->data()), jpeg->size()) &&
                        sink.write("\r\n", 2);
-            });
+            },
+            [s](bool) { s->streams.fetch_sub(1); });
     });
 
     // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, which would let a second server
@@ -154,6 +181,10 @@ Result<std::unique_ptr<MjpegServer>> MjpegServer::start(const MjpegOptions& opti
 
 int MjpegServer::port() const {
     return s_->port;
+}
+
+int MjpegServer::streamsWatching() const {
+    return s_->streams.load();
 }
 
 std::uint64_t MjpegServer::framesPublished() const {

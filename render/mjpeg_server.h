@@ -29,12 +29,19 @@ struct MjpegOptions {
     std::string host = "127.0.0.1";  // "0.0.0.0" to serve other machines
     int port = 8080;                 // 0: any free port (see MjpegServer::port())
     int quality = 80;                // JPEG quality 1-100
+    // Viewers of /stream at once; one more is answered 503 at once. Each holds a server thread
+    // for as long as it watches, so the pool has these plus kRequestThreads for everything else
+    // (a page, /frame.jpg), and an idle or slow connection is dropped after a few seconds: a
+    // full house of viewers and any number of idle sockets never stop a request being served.
+    int maxStreams = 4;
 };
 
 // Serves GET /stream (the MJPEG stream), GET /frame.jpg (the latest frame) and GET / (a page
 // showing the stream). Frames published while no client listens cost one JPEG encoding.
 class MjpegServer {
 public:
+    static constexpr int kRequestThreads = 8;
+    static constexpr int kIdleTimeoutS = 2;  // reading a request, keep-alive, writing
     static Result<std::unique_ptr<MjpegServer>> start(const MjpegOptions& options);
     ~MjpegServer();
     MjpegServer(const MjpegServer&) = delete;
@@ -43,6 +50,7 @@ public:
     int port() const;
     Result<void> publish(const Image& image);
     std::uint64_t framesPublished() const;
+    int streamsWatching() const;
 
 private:
     MjpegServer();

@@ -1,10 +1,17 @@
 // The MJPEG stream read by an HTTP client, and sinks that fail without stopping the capture.
 #include <atomic>
 #include <chrono>
+#include <memory>
+#include <string>
 #include <thread>
+#include <vector>
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "render/mjpeg_server.h"
 #include "render/sinks.h"
@@ -84,6 +91,100 @@ TEST(Mjpeg, ClientReadsAtLeastFiveValidJpegFramesFromTheStream) {
     for (const auto& f : frames) {
         EXPECT_TRUE(isJpeg(f)) << f.size();
     }
+}
+
+// A raw connection that sends a request (or nothing) and reads only the status line.
+class RawClient {
+public:
+    explicit RawClient(int port) {
+        fd_ = socket(AF_INET, SOCK_STREAM, 0);
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_port = htons(static_cast<std::uint16_t>(port));
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        connected_ = connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+        timeval tv{10, 0};
+        setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    }
+    ~RawClient() { close(fd_); }
+    bool connected() const { return connected_; }
+    void send(const std::string& text) {
+        (void)::send(fd_, text.data(), text.size(), MSG_NOSIGNAL);
+    }
+    // The first line of the answer (empty when none came within 10 s).
+    std::string statusLine() {
+        std::string line;
+        char c = 0;
+        while (line.size() < 200 && recv(fd_, &c, 1, 0) == 1 && c != '\n') {
+            line += c;
+        }
+        return line;
+    }
+
+private:
+    int fd_ = -1;
+    bool connected_ = false;
+};
+
+// Eight viewers of /stream (twice what the server lets watch) and eight idle connections that
+// send nothing: 50 clients asking for /frame.jpg at once are all answered, in bounded time.
+// Before, httplib's default eight threads were all held by the viewers and every further
+// request hung (50 clients: 27 got nothing).
+TEST(Mjpeg, ViewersAndIdleSocketsNeverStopRequestsBeingServed) {
+    MjpegOptions o;
+    o.port = 0;
+    auto server = MjpegServer::start(o);
+    ASSERT_TRUE(server) << server.error().message;
+    const int port = (*server)->port();
+    ASSERT_TRUE((*server)->publish(gradient(1)));
+    std::atomic<bool> done{false};
+    std::thread producer([&] {
+        for (int i = 0; !done; ++i) {
+            (void)(*server)->publish(gradient(i));
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+    });
+
+    std::vector<std::unique_ptr<RawClient>> viewers;
+    int accepted = 0;
+    int refused = 0;
+    for (int i = 0; i < 8; ++i) {
+        auto c = std::make_unique<RawClient>(port);
+        ASSERT_TRUE(c->connected());
+        c->send("GET /stream HTTP/1.1\r\nHost: hub\r\n\r\n");
+        const std::string status = c->statusLine();
+        accepted += status.find(" 200") != std::string::npos;
+        refused += status.find(" 503") != std::string::npos;
+        viewers.push_back(std::move(c));
+    }
+    EXPECT_EQ(accepted, o.maxStreams);
+    EXPECT_EQ(refused, 8 - o.maxStreams);
+    std::vector<std::unique_ptr<RawClient>> idle;
+    for (int i = 0; i < 8; ++i) {
+        idle.push_back(std::make_unique<RawClient>(port));
+    }
+
+    std::atomic<int> served{0};
+    std::vector<std::thread> clients;
+    for (int i = 0; i < 50; ++i) {
+        clients.emplace_back([&] {
+            httplib::Client c("127.0.0.1", port);
+            c.set_connection_timeout(30, 0);
+            c.set_read_timeout(30, 0);
+            auto res = c.Get("/frame.jpg");
+            if (res && res->status == 200 && isJpeg(res->body)) {
+                served.fetch_add(1);
+            }
+        });
+    }
+    for (auto& t : clients) {
+        t.join();
+    }
+    EXPECT_EQ(served.load(), 50);
+    EXPECT_EQ((*server)->streamsWatching(), o.maxStreams);
+    viewers.clear();
+    done = true;
+    producer.join();
 }
 
 TEST(Mjpeg, PortTakenIsReportedWithTheAddress) {
