@@ -1,6 +1,6 @@
 #include "firmware/cli/preview_sinks.h"
 
-#include <cstdlib>
+#include <charconv>
 
 #include <fmt/format.h>
 
@@ -9,28 +9,62 @@
 
 namespace caphub::firmware {
 
+namespace {
+
+constexpr const char* kExpected = "expected png:DIR, fb:/dev/fbN or http:[HOST:]PORT";
+
+}  // namespace
+
+Result<PreviewSpec> parsePreviewSpec(const std::string& spec) {
+    const auto colon = spec.find(':');
+    PreviewSpec p;
+    p.kind = spec.substr(0, colon);
+    const std::string arg = colon == std::string::npos ? "" : spec.substr(colon + 1);
+    if ((p.kind == "png" || p.kind == "fb") && !arg.empty()) {
+        p.path = arg;
+        return p;
+    }
+    if (p.kind != "http" || arg.empty()) {
+        return Error{EINVAL, fmt::format("preview '{}': {}", spec, kExpected)};
+    }
+    const auto hostColon = arg.rfind(':');
+    if (hostColon != std::string::npos) {
+        p.host = arg.substr(0, hostColon);
+    }
+    // The whole port must be a number from 0 to 65535 (atoi read "abc" as 0: any free port).
+    const std::string portText = hostColon == std::string::npos ? arg : arg.substr(hostColon + 1);
+    int port = -1;
+    const auto [end, ec] =
+        std::from_chars(portText.data(), portText.data() + portText.size(), port);
+    if (portText.empty() || ec != std::errc{} || end != portText.data() + portText.size() ||
+        port < 0 || port > 65535 || p.host.empty()) {
+        return Error{EINVAL, fmt::format("preview '{}': expected http:[HOST:]PORT with a port "
+                                         "from 0 to 65535",
+                                         spec)};
+    }
+    p.port = port;
+    return p;
+}
+
 render::SinkSet openPreviewSinks(const std::vector<std::string>& specs) {
     render::SinkSet sinks;
     for (const auto& spec : specs) {
-        const auto colon = spec.find(':');
-        const std::string kind = spec.substr(0, colon);
-        const std::string arg = colon == std::string::npos ? "" : spec.substr(colon + 1);
-        if (kind == "png" && !arg.empty()) {
-            sinks.add(render::makePngFolderSink(arg));
-        } else if (kind == "fb" && !arg.empty()) {
-            auto fb = render::FramebufferSink::openDevice(arg, 32);
+        auto p = parsePreviewSpec(spec);
+        if (!p) {
+            sinks.addFailure(spec, p.error());
+        } else if (p->kind == "png") {
+            sinks.add(render::makePngFolderSink(p->path));
+        } else if (p->kind == "fb") {
+            auto fb = render::FramebufferSink::openDevice(p->path, 32);
             if (fb) {
                 sinks.add(render::makeFramebufferSink(std::move(*fb)));
             } else {
                 sinks.addFailure(spec, fb.error());
             }
-        } else if (kind == "http" && !arg.empty()) {
+        } else {
             render::MjpegOptions mo;
-            const auto hostColon = arg.rfind(':');
-            if (hostColon != std::string::npos) {
-                mo.host = arg.substr(0, hostColon);
-            }
-            mo.port = std::atoi(arg.c_str() + (hostColon == std::string::npos ? 0 : hostColon + 1));
+            mo.host = p->host;
+            mo.port = p->port;
             auto server = render::MjpegServer::start(mo);
             if (server) {
                 fmt::print("preview: http://{}:{}/\n", mo.host, (*server)->port());
@@ -38,9 +72,6 @@ render::SinkSet openPreviewSinks(const std::vector<std::string>& specs) {
             } else {
                 sinks.addFailure(spec, server.error());
             }
-        } else {
-            sinks.addFailure(spec,
-                             Error{EINVAL, "expected png:DIR, fb:/dev/fbN or http:[HOST:]PORT"});
         }
     }
     return sinks;

@@ -48,6 +48,12 @@ int replay(const ReplayOptions& o) {
         fmt::print(stderr, "caphub replay: give --preview png:DIR, fb:/dev/fbN or http:PORT\n");
         return kExitUsage;
     }
+    for (const auto& spec : o.previews) {
+        if (auto p = parsePreviewSpec(spec); !p) {
+            fmt::print(stderr, "caphub replay: --{}\n", p.error().message);
+            return kExitUsage;
+        }
+    }
     render::SinkSet sinks = openPreviewSinks(o.previews);
     for (const auto& f : sinks.failures()) {
         fmt::print(stderr, "caphub replay: preview {}\n", f);

@@ -115,6 +115,12 @@ int run(const RunOptions& o) {
                    o.bodyCalibration);
         return kExitUsage;
     }
+    for (const auto& spec : o.previews) {
+        if (auto p = parsePreviewSpec(spec); !p) {
+            fmt::print(stderr, "caphub run: --{}\n", p.error().message);
+            return kExitUsage;
+        }
+    }
     // The pose is held from the start until the orientations have been averaged, plus a margin.
     const double holdS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
     CaptureSetupOptions so;

@@ -414,6 +414,20 @@ TEST(CliRun, ARealTimeRunOnOneCoreStopsAtItsDuration) {
     EXPECT_NE(r.output.find(" dropped"), std::string::npos) << r.output;
 }
 
+TEST(CliRun, APreviewPortThatIsNotANumberIsRefused) {
+    // `--preview http:abc` listened on a random port (atoi read 0) instead of refusing.
+    for (const std::string spec : {"http:abc", "http:8080x", "http:70000", "http::8080", "gif:x"}) {
+        const CliRun r =
+            shell("timeout -s KILL 60 " + std::string(CAPHUB_BINARY) +
+                  " run --board sim-upper10 --rest --duration 1 --no-record "
+                  "--preview " +
+                  spec + " --status-file " + ::testing::TempDir() + "caphub-preview-status.json");
+        EXPECT_EQ(r.exitCode, 2) << spec << ": " << r.output;
+        EXPECT_NE(r.output.find("expected"), std::string::npos) << r.output;
+        EXPECT_EQ(r.output.find("preview: http://"), std::string::npos) << r.output;
+    }
+}
+
 TEST(CliRun, AVeryFastRunStopsAtItsDuration) {
     // 20,000 simulated seconds at 1e5: 0.2 s of real time. Before the fix it never ended; the
     // capture itself (not the start-up) must end within a second of its duration.
