@@ -1,15 +1,24 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package caphub needs to build, run and test on the host.
+# Installs every Debian 12 package caphub needs to build, run and test on the host (`run`: only
+# what building and running the program needs).
 # Idempotent: only packages that are missing are installed; nothing is downloaded from anywhere
 # but the Debian archive. Works as root, or through sudo for a normal user.
 set -euo pipefail
 
-packages=(
+# What building and running the program needs (`bootstrap.sh run`, the README's main job).
+program_packages=(
   # Build tools.
-  build-essential cmake ninja-build ccache pkg-config git clang-format
+  build-essential cmake ninja-build ccache pkg-config
   # Libraries (architecture: Dependencies).
   libeigen3-dev libfmt-dev libspdlog-dev libtomlplusplus-dev libcli11-dev zlib1g-dev
   libi2c-dev libgpiod-dev
+  # Render: OSMesa, PNG, JPEG, HTTP, glTF.
+  libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
+  nlohmann-json3-dev libstb-dev
+)
+# Besides, for the tests, the cross builds and the packages (`bootstrap.sh`, the default).
+test_packages=(
+  git clang-format
   # Tests and benchmarks; clang and its runtime for the libFuzzer targets.
   libgtest-dev libgmock-dev libbenchmark-dev clang libclang-rt-14-dev
   # Kernel-level tests: Debian's kernel booted under qemu with a busybox initramfs.
@@ -18,12 +27,18 @@ packages=(
   # .deb packages, and caphub-flash's offline image editing (sfdisk, mtools, debugfs).
   g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev fakeroot file
   fdisk dosfstools mtools e2fsprogs
-  # Render: OSMesa, PNG, JPEG, HTTP, glTF.
-  libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
-  nlohmann-json3-dev libstb-dev
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
 )
+
+case "${1:-all}" in
+run) packages=("${program_packages[@]}") ;;
+all) packages=("${program_packages[@]}" "${test_packages[@]}") ;;
+*)
+  echo "usage: bootstrap.sh [run|all]" >&2
+  exit 2
+  ;;
+esac
 
 missing=()
 # What installed packages provide: one counts as present (NodeSource's nodejs provides npm).

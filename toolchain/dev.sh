@@ -18,13 +18,16 @@ usage() {
 build() {
     local preset=$1
     bash toolchain/bootstrap.sh
-    cmake --preset "$preset" >/dev/null
+    cmake --preset "$preset" -DCAPHUB_BUILD_TESTS=ON -DCAPHUB_BUILD_BENCHMARKS=ON >/dev/null
     cmake --build --preset "$preset"
 }
 
 case "${1:-}" in
 run)
-    build release
+    # Only what the program needs: its packages, and the program alone (no tests).
+    bash toolchain/bootstrap.sh run
+    cmake --preset release -DCAPHUB_BUILD_TESTS=OFF -DCAPHUB_BUILD_BENCHMARKS=OFF >/dev/null
+    cmake --build --preset release --target caphub
     out="$root/out"
     rm -rf "$out/recordings" "$out/preview" "$out/exports"
     mkdir -p "$out/recordings" "$out/exports"
