@@ -89,12 +89,14 @@ int runExport(const ExportArgs& a) {
     }
 
     TerminalProgress progress;
-    auto summary = exportRecording(a.recording, a.output, o,
-                                   [&](std::string_view stage, double f) { progress(stage, f); });
+    FailureKind failure = FailureKind::Work;
+    auto summary = exportRecording(
+        a.recording, a.output, o, [&](std::string_view stage, double f) { progress(stage, f); },
+        &failure);
     progress.done();
     if (!summary) {
         fmt::print(stderr, "caphub export: {}\n", summary.error().message);
-        return summary.error().code == EINVAL ? kExitUsage : kExitRuntime;
+        return failure == FailureKind::Input ? kExitUsage : kExitRuntime;
     }
     const ExportSummary& s = *summary;
     if (s.damagedBytes > 0 || s.malformedPoses > 0 || s.outOfOrderPoses > 0) {

@@ -149,6 +149,11 @@ int run(const RunOptions& o) {
                       o.calibration, name, b.name);
         }
         calibrationText = formatCalibration(*set);
+        if (const std::string problem = recordingProblem(b, o.calibration, calibrationText);
+            !problem.empty()) {
+            fmt::print(stderr, "caphub run: {}: {}\n", b.path.string(), problem);
+            return kExitUsage;
+        }
     }
 
     std::unique_ptr<Clock> clock;
@@ -221,21 +226,17 @@ int run(const RunOptions& o) {
         }
         if (ec) {
             fmt::print(stderr, "caphub run: cannot create '{}': {}\n", dir.string(), ec.message());
-            return kExitRuntime;
+            return exitCodeForCreate(ec.value());
         }
         recordingPath = !o.record.empty() ? fs::path(o.record)
                                           : dir / fmt::format("{}-{}.cap", timestampName(), b.name);
-        std::ifstream in(b.path);
-        std::stringstream text;
-        text << in.rdbuf();
         ho.writer.syncInterval = std::chrono::milliseconds(o.syncMs);
         auto writer = RecordingWriter::create(
             recordingPath.string(),
-            recordingMetadata(b, text.str(), versionLine(), o.calibration, calibrationText),
-            ho.writer);
+            recordingMetadata(b, b.text, versionLine(), o.calibration, calibrationText), ho.writer);
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
-            return kExitRuntime;
+            return exitCodeForCreate(writer.error().code);
         }
         ho.recordFromStart = std::move(*writer);
     }

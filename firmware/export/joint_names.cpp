@@ -8,6 +8,7 @@
 #include <toml++/toml.h>
 
 #include "fusion/body/skeleton.h"
+#include "hal/core/input_file.h"
 
 namespace caphub::firmware::exporter {
 
@@ -134,15 +135,14 @@ Result<JointNames> jointNamesFor(std::string_view spec) {
         return fromTable("unity", kUnity);
     }
     const std::string path(spec);
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        return Error{ENOENT, fmt::format("--names '{}': expected hanim, cmu, unity or a readable "
-                                         "map file",
-                                         path)};
+    auto text = readInputFile(path);
+    if (!text) {
+        return Error{text.error().code,
+                     fmt::format("--names '{}': expected hanim, cmu, unity or a readable map file "
+                                 "({})",
+                                 path, text.error().message)};
     }
-    std::ostringstream text;
-    text << in.rdbuf();
-    return parseJointNames(text.str(), path);
+    return parseJointNames(*text, path);
 }
 
 }  // namespace caphub::firmware::exporter
