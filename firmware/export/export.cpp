@@ -86,6 +86,12 @@ Result<ExportSummary> exportRecording(const std::string& recordingPath,
     if (!names) {
         return fail(FailureKind::Input, names.error());
     }
+    if (names->stoOnly && options.format != Format::Sto) {
+        return fail(FailureKind::Input,
+                    Error{EINVAL, fmt::format("--names {}: it names OpenSim model bodies, for "
+                                              "--format sto only",
+                                              names->setName)});
+    }
     auto reader = RecordingReader::open(recordingPath);
     if (!reader) {
         return fail(FailureKind::Input, reader.error());
@@ -105,6 +111,13 @@ Result<ExportSummary> exportRecording(const std::string& recordingPath,
                           fmt::format("'{}': {}", recordingPath, track.error().message)});
     }
 
+    if (options.format == Format::Sto) {
+        if (auto columns = stoColumns(*track, *names, options.stoOrientations); !columns) {
+            return fail(FailureKind::Input, Error{EINVAL, fmt::format("'{}': {}", recordingPath,
+                                                                      columns.error().message)});
+        }
+    }
+
     // Written beside the target, then renamed over it: never a half-written OUT.
     const std::string partial = target->string() + ".part";
     const ProgressFn writing = [&](double f) {
@@ -122,7 +135,7 @@ Result<ExportSummary> exportRecording(const std::string& recordingPath,
             written = writeCsv(*track, *names, options.unitsPerM, partial, writing);
             break;
         case Format::Sto:
-            written = writeSto(*track, *names, partial, writing);
+            written = writeSto(*track, *names, options.stoOrientations, partial, writing);
             break;
         case Format::Glb:
             written = writeGlb(*track, *names, partial, writing);

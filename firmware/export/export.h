@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "firmware/export/pose_track.h"
+#include "firmware/export/writers.h"
 #include "hal/core/error.h"
 
 namespace caphub::firmware::exporter {
@@ -22,9 +23,10 @@ std::string_view formatName(Format f);
 struct ExportOptions {
     Format format = Format::Bvh;
     TrackOptions track;
-    std::string names = "hanim";  // hanim, cmu, unity or a map file
-    double unitsPerM = 1;         // bvh and csv: 1 (m) or 100 (cm)
-    bool referenceFrame = false;  // bvh: the T-pose as frame 0
+    std::string names = "hanim";                                 // hanim, cmu, unity or a map file
+    double unitsPerM = 1;                                        // bvh and csv: 1 (m) or 100 (cm)
+    bool referenceFrame = false;                                 // bvh: the T-pose as frame 0
+    StoOrientations stoOrientations = StoOrientations::Sensors;  // sto: whose orientations
 };
 
 struct ExportSummary {
