@@ -2,6 +2,8 @@
 // Today: Xsens MT Manager text exports, one file per sensor, with a small mapping file from
 // sensor id to segment and the subject's height.
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -19,6 +21,7 @@
 #include "firmware/io/xsens_text.h"
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/recorder_stage.h"
+#include "fusion/body/body_tracker.h"
 #include "hal/core/input_file.h"
 
 namespace caphub::firmware {
@@ -30,6 +33,8 @@ struct ImportArgs {
     std::string map;
     std::string output;
     double magFieldUt = 50;
+    std::string calibrate = "npose";  // the pose held at the start: npose, tpose or none
+    double poseRateHz = 60;
 };
 
 // The mapping file: `height_m = 1.80` (optional) and a [sensors] table of device id = segment.
@@ -232,6 +237,28 @@ int runImport(const ImportArgs& a) {
     auto& w = **writer;
     int rc = 0;
     std::vector<std::size_t> nextGap(files.size(), 0);
+
+    // Poses from the vendor's orientations, as the body stage of `caphub run` solves them: a
+    // body calibration in the pose held at the start (averaged over 1 s from the first sample),
+    // then one pose per grid point at the pose rate. Every file needs its orientation columns.
+    const bool withPoses = std::all_of(files.begin(), files.end(), [](const XsensFile& f) {
+        return !f.orientationColumns.empty();
+    });
+    std::vector<body::TrackedSensor> tracked;
+    for (const auto& s : loaded.board->sensors) {
+        tracked.push_back({s.segment, s.mounting, s.positionM});
+    }
+    body::BodyTrackerOptions to;
+    to.rateHz = a.poseRateHz;
+    to.solveUncalibrated = a.calibrate == "none";
+    to.aidFilters = false;  // the vendor's filter is not aided
+    body::BodyTracker tracker(body::Skeleton(*body::dimensionsFromSubject(loaded.board->subject)),
+                              tracked, to);
+    bool started = false;
+    std::array<Eigen::Quaternionf, body::kSegmentCount> joints;
+    joints.fill(Eigen::Quaternionf::Identity());
+    std::uint64_t poses = 0;
+    std::string calibrationNote = "none";
     for (const Item& it : items) {
         const XsensFile& f = files[static_cast<std::size_t>(it.sensor)];
         const XsensSample& s = f.samples[it.index];
@@ -262,6 +289,51 @@ int runImport(const ImportArgs& a) {
             rc = rc != 0 ? rc
                          : w.writeOrientation(it.sensor, sample.t, s.qEarthSensor->cast<float>());
         }
+        if (!withPoses || rc != 0) {
+            continue;
+        }
+        if (!started) {
+            started = true;
+            if (a.calibrate != "none") {
+                tracker.startCalibration(a.calibrate == "tpose" ? body::ReferencePoseKind::T
+                                                                : body::ReferencePoseKind::N,
+                                         sample.t);
+            }
+        }
+        body::SensorUpdate u;
+        u.sensor = it.sensor;
+        u.t = sample.t;
+        u.qEnuSensor = s.qEarthSensor->cast<float>();
+        u.specificForceMps2 = sample.accMps2;
+        u.rateRadS = sample.gyrRadps;
+        const body::TrackerEvents events = tracker.update(u);
+        if (events.calibrationFailed) {
+            calibrationNote = "failed: " + events.message;
+        }
+        if (events.calibrated) {
+            const body::BodyCalibration& cal = tracker.calibration();
+            calibrationNote = fmt::format("{} pose at {:.3f} s", body::toString(cal.method),
+                                          toSeconds(sample.t.time_since_epoch()) - 1.0);
+            rc = w.writeEvent(sample.t, cap::EventKind::Calibrated, -1, 0,
+                              fmt::format("body calibration: {} pose, {} segments (at import)",
+                                          body::toString(cal.method), std::popcount(cal.mask)));
+            rc = rc != 0 ? rc
+                         : w.writeMetadata(sample.t, "[body_calibration]\ntext = " +
+                                                         tomlString(body::toText(cal)) + "\n");
+        }
+        while (rc == 0) {
+            const std::optional<Timestamp> due = tracker.due(sample.t);
+            if (!due) {
+                break;
+            }
+            const body::TrackedPose& p = tracker.solveAt(*due);
+            const std::uint32_t notMeasured = ~p.valid & ((1u << body::kSegmentCount) - 1);
+            for (std::size_t j = 0; j < joints.size(); ++j) {
+                joints[j] = p.pose->qLocal[j].cast<float>();
+            }
+            rc = w.writePose(p.t, p.pose->positionM[0].cast<float>(), joints, notMeasured);
+            ++poses;
+        }
     }
     const int closed = w.close();
     if (rc != 0 || closed != 0) {
@@ -281,6 +353,12 @@ int runImport(const ImportArgs& a) {
     fmt::print(
         "{}: {} sensors, {:.3f} s\n", a.output, files.size(),
         static_cast<double>(items.empty() ? 0 : items.back().tNs - items.front().tNs) * 1e-9);
+    if (withPoses) {
+        fmt::print("poses: {} at {:g} Hz from the vendor's orientations; body calibration: {}\n",
+                   poses, a.poseRateHz, calibrationNote);
+    } else {
+        fmt::print("poses: none (a file has no orientation columns)\n");
+    }
     return kExitOk;
 }
 
@@ -298,6 +376,14 @@ void addImportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--mag-field-ut", a->magFieldUt,
                     "The local field in uT: magnetometer units normalised to it are scaled by it")
         ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--calibrate", a->calibrate,
+                    "Poses: the pose the subject holds for the first second (npose, tpose), or "
+                    "none (nominal mountings)")
+        ->check(CLI::IsMember({"npose", "tpose", "none"}))
+        ->capture_default_str();
+    cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
+        ->check(CLI::Range(1.0, 1000.0))
         ->capture_default_str();
     cmd->callback([&exitCode, a] { exitCode = runImport(*a); });
 }

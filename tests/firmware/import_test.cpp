@@ -1,7 +1,10 @@
 // caphub import of Xsens MT Manager text exports: the files' samples, orientations and packet
 // gaps into a .cap that `caphub info` reads, and malformed input reported as file:line:column.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -217,6 +220,65 @@ TEST(ImportCli, TwoXsensSensorsBecomeARecordingThatInfoDescribes) {
     EXPECT_THAT(info.output, HasSubstr("lost_samples = 5"));
     EXPECT_THAT(info.output, HasSubstr("sensor lost  sensor 1: 5 packet(s) missing in " +
                                        thighWithGap + " before line 107"));
+}
+
+// Poses from the vendor's orientations after an N-pose calibration over the first second (the
+// leg stands still at the start of the take): export and replay take the imported take.
+TEST(ImportCli, AnImportedTakeHasPosesThatExportAndReplayTake) {
+    const std::string out = temp("posed.cap");
+    fs::remove(out);
+    const CliRun r = caphub("import " + kShank + " " + kThigh + " --map " + mapFile() + " -o " +
+                            out + " --pose-rate 50");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("body calibration: npose pose at 1.000 s"));
+    // 3 s of samples, the first second for the calibration: 2 s of poses at 50 Hz.
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(poses: (\d+) at 50 Hz)"))) << r.output;
+    EXPECT_NEAR(std::stoi(m[1]), 100, 2);
+
+    const std::string sto = temp("posed.sto");
+    const CliRun ex = caphub("export " + out + " --format sto --names opensim -o " + sto);
+    ASSERT_EQ(ex.exitCode, 0) << ex.output;
+    EXPECT_EQ(lines(readAll(sto))[5], "time\ttibia_r_imu\tfemur_r_imu");
+
+    // The segments, standing still in the N-pose they were calibrated in: the knee (thigh to
+    // shank) straight within 2 deg (0.4 deg measured on this take).
+    const std::string segments = temp("posed-segments.sto");
+    ASSERT_EQ(caphub("export " + out + " --format sto --names opensim --orientations segments -o " +
+                     segments)
+                  .exitCode,
+              0);
+    const auto rows = lines(readAll(segments));
+    ASSERT_GT(rows.size(), 7u);
+    const auto header = rows[5];
+    const auto cellsOf = [](const std::string& row) {
+        std::vector<std::string> c;
+        std::istringstream in(row);
+        std::string cell;
+        while (std::getline(in, cell, '\t')) {
+            c.push_back(cell);
+        }
+        return c;
+    };
+    const auto names = cellsOf(header);
+    const auto values = cellsOf(rows[6]);
+    const auto quat = [&](const std::string& label) {
+        const auto at = std::find(names.begin(), names.end(), label) - names.begin();
+        double w = 0, x = 0, y = 0, z = 0;
+        char comma = 0;
+        std::istringstream(values[static_cast<std::size_t>(at)]) >> w >> comma >> x >> comma >> y >>
+            comma >> z;
+        return Eigen::Quaterniond(w, x, y, z).normalized();
+    };
+    const double kneeDeg = quat("femur_r_imu").angularDistance(quat("tibia_r_imu")) * 180 / M_PI;
+    EXPECT_LT(kneeDeg, 2.0);
+
+    const CliRun bvh = caphub("export " + out + " --format bvh -o " + temp("posed.bvh"));
+    EXPECT_EQ(bvh.exitCode, 0) << bvh.output;
+    const CliRun replay =
+        caphub("replay " + out + " --preview png:" + temp("frames") + " --speed 0 --fps 5");
+    EXPECT_EQ(replay.exitCode, 0) << replay.output;
+    EXPECT_TRUE(fs::exists(temp("frames") + "/frame_000000.png"));
 }
 
 TEST(ImportCli, BadMapsAndUnmappedSensorsAreUsageErrors) {
