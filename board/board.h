@@ -99,6 +99,7 @@ struct RuntimeConfig {
 
 struct Board {
     std::filesystem::path path;
+    std::string text;  // the file as loaded: recordings embed it
     std::string name;
     std::string description;
     std::vector<BusConfig> buses;

@@ -12,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "hal/core/error.h"
+#include "hal/core/input_file.h"
 
 namespace caphub::board {
 
@@ -23,6 +24,9 @@ Diagnostic::Diagnostic(SourceLocation whereIn, std::string keyIn, std::string me
     : where(std::move(whereIn)), key(std::move(keyIn)), message(std::move(messageIn)) {}
 
 std::string Diagnostic::str() const {
+    if (where.line <= 0) {  // about the file as a whole (it cannot be read)
+        return fmt::format("{}: {}", where.file, message);
+    }
     return fmt::format("{}:{}:{}: {}: {}", where.file, where.line, where.column, key, message);
 }
 
@@ -973,24 +977,28 @@ LoadResult loadBoardText(std::string_view text, const std::string& sourceName) {
     Parser(sourceName, out).run(root);
     if (out.board) {
         out.board->path = sourceName;
+        out.board->text = std::string(text);
     }
     return out;
 }
 
 LoadResult loadBoardFile(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
+    auto text = readInputFile(path, kMaxBoardFileBytes);
+    if (!text) {
         LoadResult out;
-        const int err = errno;
         SourceLocation where;
         where.file = path.string();
-        out.errors.emplace_back(std::move(where), "(file)",
-                                fmt::format("cannot read the board file: {}", errnoText(err)));
+        const std::string& why = text.error().message;
+        out.errors.emplace_back(
+            std::move(where), "(file)",
+            text.error().code == EFBIG
+                ? fmt::format("cannot read the board file: {}: a recording embeds the board file "
+                              "in its metadata, which holds at most {} bytes (1 MiB)",
+                              why, kMaxBoardFileBytes)
+                : fmt::format("cannot read the board file: {}", why));
         return out;
     }
-    std::ostringstream text;
-    text << in.rdbuf();
-    return loadBoardText(text.str(), path.string());
+    return loadBoardText(*text, path.string());
 }
 
 }  // namespace caphub::board

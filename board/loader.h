@@ -33,6 +33,12 @@ struct LoadResult {
     bool ok() const { return board.has_value(); }
 };
 
+// A recording embeds the board file in its metadata (at most 1 MiB, docs/recording-format.md):
+// a larger board file is refused unread. The copy embedded is escaped (a newline takes two
+// bytes), so a file under this size can still be too large: `caphub boards validate` and
+// `caphub run` check the metadata it makes.
+inline constexpr std::size_t kMaxBoardFileBytes = 1u << 20;
+
 LoadResult loadBoardFile(const std::filesystem::path& path);
 
 // The same from text; sourceName stands for the file name in diagnostics.

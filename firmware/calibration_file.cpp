@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "hal/core/input_file.h"
+
 namespace caphub::firmware {
 
 namespace {
@@ -227,13 +229,11 @@ Result<CalibrationSet> parseCalibration(std::string_view text, const std::string
 }
 
 Result<CalibrationSet> readCalibrationFile(const std::filesystem::path& path) {
-    std::ifstream in(path);
-    if (!in) {
-        return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));
+    auto text = readInputFile(path);
+    if (!text) {
+        return text.error();
     }
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return parseCalibration(ss.str(), path.string());
+    return parseCalibration(*text, path.string());
 }
 
 std::string formatCalibration(const CalibrationSet& set) {

@@ -11,6 +11,8 @@
 
 #include <fmt/format.h>
 
+#include "hal/core/input_file.h"
+
 namespace caphub::board::sim {
 
 namespace {
@@ -567,16 +569,11 @@ Result<BvhClip> parseBvh(std::string_view text, std::string_view sourceName) {
 }
 
 Result<BvhClip> loadBvh(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));
+    auto text = readInputFile(path);
+    if (!text) {
+        return text.error();
     }
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    if (in.bad()) {
-        return errnoError(-EIO, fmt::format("read '{}'", path.string()));
-    }
-    return parseBvh(buffer.str(), path.string());
+    return parseBvh(*text, path.string());
 }
 
 }  // namespace caphub::board::sim

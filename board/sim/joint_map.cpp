@@ -9,6 +9,8 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "hal/core/input_file.h"
+
 namespace caphub::board::sim {
 
 using board::Segment;
@@ -294,13 +296,11 @@ Result<JointMap> parseJointMap(std::string_view text, std::string_view sourceNam
 }
 
 Result<JointMap> loadJointMap(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));
+    auto text = readInputFile(path);
+    if (!text) {
+        return text.error();
     }
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    return parseJointMap(buffer.str(), path.string());
+    return parseJointMap(*text, path.string());
 }
 
 std::optional<Segment> parentSegment(Segment s) {

@@ -105,6 +105,11 @@ int validate(const std::string& given, bool quiet) {
                    r.errors.size(), r.errors.size() == 1 ? "" : "s");
         return kExitUsage;
     }
+    if (const std::string problem = recordingProblem(*r.board); !problem.empty()) {
+        fmt::print(stderr, "{}: {}\n", path.string(), problem);
+        fmt::print(stderr, "{}: 1 error; the board file is not valid\n", path.string());
+        return kExitUsage;
+    }
     if (!quiet) {
         describe(*r.board, r.loads);
     }

@@ -2,8 +2,6 @@
 
 #include <atomic>
 #include <csignal>
-#include <fstream>
-#include <sstream>
 
 #include <fmt/format.h>
 
@@ -46,12 +44,7 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
         }
         s.calibrationText = formatCalibration(*set);
     }
-    {
-        std::ifstream in(b.path);
-        std::stringstream text;
-        text << in.rdbuf();
-        s.boardText = text.str();
-    }
+    s.boardText = b.text;
     if (s.sim) {
         s.clock = std::make_unique<SimulatedClock>(MonotonicClock().now(), o.speed);
     } else {

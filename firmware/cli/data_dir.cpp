@@ -5,6 +5,9 @@
 #include <fmt/format.h>
 
 #include "board/loader.h"
+#include "firmware/cli/info.h"
+#include "firmware/recording/format.h"
+#include "firmware/runtime/recorder_stage.h"
 #include "firmware/version.h"
 
 namespace caphub::firmware {
@@ -57,12 +60,36 @@ fs::path defaultMotionClip() {
     return {};
 }
 
+std::string recordingProblem(const board::Board& b, const std::string& calibrationPath,
+                             const std::string& calibrationText) {
+    const std::string metadata =
+        recordingMetadata(b, b.text, versionLine(), calibrationPath, calibrationText);
+    if (metadata.size() <= cap::kMaxPayloadBytes) {
+        return {};
+    }
+    const std::size_t boardEscaped = tomlString(b.text).size();
+    std::string cause = fmt::format(
+        "the board file is {} bytes ({} once escaped); a recording embeds the board file in its "
+        "metadata, which holds at most {} bytes (1 MiB)",
+        b.text.size(), boardEscaped, cap::kMaxPayloadBytes);
+    if (!calibrationText.empty()) {
+        cause += fmt::format(" together with the calibration file '{}' ({} bytes once escaped)",
+                             calibrationPath, tomlString(calibrationText).size());
+    }
+    return fmt::format("{}; the metadata would be {} bytes: make the board file smaller", cause,
+                       metadata.size());
+}
+
 std::optional<board::Board> loadCommandBoard(const std::string& nameOrPath) {
     const auto loaded = board::loadBoardFile(resolveBoardFile(nameOrPath));
     if (!loaded.ok()) {
         for (const auto& e : loaded.errors) {
             fmt::print(stderr, "{}\n", e.str());
         }
+        return std::nullopt;
+    }
+    if (const std::string problem = recordingProblem(*loaded.board); !problem.empty()) {
+        fmt::print(stderr, "{}: {}\n", loaded.board->path.string(), problem);
         return std::nullopt;
     }
     return *loaded.board;

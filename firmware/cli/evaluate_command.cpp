@@ -16,6 +16,7 @@
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/evaluation.h"
+#include "hal/core/input_file.h"
 
 namespace caphub::firmware {
 
@@ -81,9 +82,8 @@ int evaluate(const EvaluateCliOptions& c) {
     }
     // Every clip is checked before the first (long) run.
     for (const auto& path : c.bvh) {
-        std::error_code ec;
-        if (!fs::is_regular_file(path, ec)) {
-            fmt::print(stderr, "caphub evaluate: --bvh '{}': no such file\n", path);
+        if (auto ok = checkInputFile(path); !ok) {
+            fmt::print(stderr, "caphub evaluate: --bvh: {}\n", ok.error().message);
             return kExitUsage;
         }
     }

@@ -26,6 +26,7 @@ struct ExportArgs {
     std::optional<double> fromS;
     std::optional<double> toS;
     bool referenceFrame = false;
+    std::string orientations;  // sto: sensors (default) or segments
 };
 
 std::string sizeText(std::uint64_t bytes) {
@@ -87,14 +88,22 @@ int runExport(const ExportArgs& a) {
         fmt::print(stderr, "caphub export: --reference-frame is for bvh only\n");
         return kExitUsage;
     }
+    if (!a.orientations.empty() && o.format != Format::Sto) {
+        fmt::print(stderr, "caphub export: --orientations is for sto only\n");
+        return kExitUsage;
+    }
+    o.stoOrientations =
+        a.orientations == "segments" ? StoOrientations::Segments : StoOrientations::Sensors;
 
     TerminalProgress progress;
-    auto summary = exportRecording(a.recording, a.output, o,
-                                   [&](std::string_view stage, double f) { progress(stage, f); });
+    FailureKind failure = FailureKind::Work;
+    auto summary = exportRecording(
+        a.recording, a.output, o, [&](std::string_view stage, double f) { progress(stage, f); },
+        &failure);
     progress.done();
     if (!summary) {
         fmt::print(stderr, "caphub export: {}\n", summary.error().message);
-        return summary.error().code == EINVAL ? kExitUsage : kExitRuntime;
+        return failure == FailureKind::Input ? kExitUsage : kExitRuntime;
     }
     const ExportSummary& s = *summary;
     if (s.damagedBytes > 0 || s.malformedPoses > 0 || s.outOfOrderPoses > 0) {
@@ -128,7 +137,8 @@ void addExportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--rate", a->rateHz, "Frames per second (default: the recording's pose rate)")
         ->check(CLI::PositiveNumber);
     cmd->add_option("--names", a->names,
-                    "Joint names: hanim, cmu, unity, or a TOML map file (segment = \"name\")")
+                    "Joint names: hanim, cmu, unity, opensim (sto: OpenSim model bodies), or a "
+                    "TOML map file (segment = \"name\")")
         ->capture_default_str();
     cmd->add_option("--units", a->units, "Length unit of bvh and csv")
         ->check(CLI::IsMember({"m", "cm"}))
@@ -137,6 +147,10 @@ void addExportCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--to", a->toS, "End, seconds from the first pose")
         ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--orientations", a->orientations,
+                    "sto: the sensors' orientations (default; what OpenSense expects) or the "
+                    "segments'")
+        ->check(CLI::IsMember({"sensors", "segments"}));
     cmd->add_flag("--reference-frame", a->referenceFrame,
                   "bvh: prepend the reference pose (T-pose) as the first frame");
     cmd->callback([&exitCode, a] { exitCode = runExport(*a); });

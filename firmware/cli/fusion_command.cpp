@@ -90,7 +90,7 @@ int runReplay(const ReplayOptions& o) {
         auto trial = readBroadCsv(in);
         if (!trial) {
             fmt::print(stderr, "caphub fusion replay: {}\n", trial.error().message);
-            return kExitRuntime;
+            return kExitUsage;
         }
         int decimation = 1;
         if (o.rateHz > 0.0) {
@@ -111,7 +111,7 @@ int runReplay(const ReplayOptions& o) {
                        "caphub fusion replay: {}: the filter cannot run at {:g} Hz ({} must lie "
                        "within 0.6 Hz and 20 kHz)\n",
                        in, fedHz, bad);
-            return kExitRuntime;
+            return kExitUsage;
         }
         fusion::FilterRejections rejected;
         const auto estimate = fusion::runFilter(trial->samples, trial->rateHz, decimation, variant,
@@ -122,7 +122,7 @@ int runReplay(const ReplayOptions& o) {
         if (!o.output.empty()) {
             if (auto r = writeEstimate(o.output, *trial, estimate); !r) {
                 fmt::print(stderr, "caphub fusion replay: {}\n", r.error().message);
-                return kExitRuntime;
+                return exitCodeForCreate(r.error().code);
             }
         }
         if (trial->hasTruth()) {
@@ -171,9 +171,8 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
         "replay",
         "Run the filter over BROAD-layout files (t, gyr, acc, mag[, opt quaternion, movement]); "
         "print the BROAD RMSE when the file has ground truth");
-    replay->add_option("--in", opts->inputs, "Input file(s), .csv or .csv.gz")
-        ->required()
-        ->check(CLI::ExistingFile);
+    // Checked when read (hal/core/input_file.h), with the same words as every other input.
+    replay->add_option("--in", opts->inputs, "Input file(s), .csv or .csv.gz")->required();
     replay->add_option("--out", opts->output,
                        "Write the estimate here: t,qw,qx,qy,qz (sensor -> earth, ENU), one row per "
                        "input row");

@@ -138,6 +138,11 @@ int run(const RunOptions& o) {
         fmt::print(stderr, "caphub run: {}\n", setup.error().message);
         return setup.error().code == EINVAL ? kExitUsage : kExitRuntime;
     }
+    if (const std::string problem = recordingProblem(b, o.calibration, setup->calibrationText);
+        !problem.empty()) {
+        fmt::print(stderr, "caphub run: {}: {}\n", b.path.string(), problem);
+        return kExitUsage;
+    }
     const bool sim = setup->sim;
     // From the moment the recording is created, a signal stops the capture cleanly.
     StopSignals signals;
@@ -160,7 +165,7 @@ int run(const RunOptions& o) {
         }
         if (ec) {
             fmt::print(stderr, "caphub run: cannot create '{}': {}\n", dir.string(), ec.message());
-            return kExitRuntime;
+            return exitCodeForCreate(ec.value());
         }
         recordingPath = !o.record.empty() ? fs::path(o.record)
                                           : dir / fmt::format("{}-{}.cap", timestampName(), b.name);
@@ -172,7 +177,7 @@ int run(const RunOptions& o) {
                                     ho.writer);
         if (!writer) {
             fmt::print(stderr, "caphub run: {}\n", writer.error().message);
-            return kExitRuntime;
+            return exitCodeForCreate(writer.error().code);
         }
         ho.recordFromStart = std::move(*writer);
     }

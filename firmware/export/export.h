@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "firmware/export/pose_track.h"
+#include "firmware/export/writers.h"
 #include "hal/core/error.h"
 
 namespace caphub::firmware::exporter {
@@ -22,9 +23,10 @@ std::string_view formatName(Format f);
 struct ExportOptions {
     Format format = Format::Bvh;
     TrackOptions track;
-    std::string names = "hanim";  // hanim, cmu, unity or a map file
-    double unitsPerM = 1;         // bvh and csv: 1 (m) or 100 (cm)
-    bool referenceFrame = false;  // bvh: the T-pose as frame 0
+    std::string names = "hanim";                                 // hanim, cmu, unity or a map file
+    double unitsPerM = 1;                                        // bvh and csv: 1 (m) or 100 (cm)
+    bool referenceFrame = false;                                 // bvh: the T-pose as frame 0
+    StoOrientations stoOrientations = StoOrientations::Sensors;  // sto: whose orientations
 };
 
 struct ExportSummary {
@@ -45,8 +47,16 @@ struct ExportSummary {
 // Progress: the stage ("reading", "writing") and its fraction done in [0, 1].
 using StageProgressFn = std::function<void(std::string_view, double)>;
 
+// What made an export fail: something it was given (an option, the recording or names file:
+// missing, not a file, malformed, without poses; an output path it may not write: `caphub export`
+// exits 2), or the work itself (reading or writing failed part-way: exits 1).
+enum class FailureKind { Input, Work };
+
+// Everything given is checked before the first byte is written; the output goes to OUT.part
+// beside the file it replaces, renamed over it only when complete (docs/exports.md).
 Result<ExportSummary> exportRecording(const std::string& recordingPath,
                                       const std::string& outputPath, const ExportOptions& options,
-                                      const StageProgressFn& progress = {});
+                                      const StageProgressFn& progress = {},
+                                      FailureKind* failure = nullptr);
 
 }  // namespace caphub::firmware::exporter

@@ -2,10 +2,12 @@
 #include <algorithm>
 #include <cstring>
 #include <limits>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <tiny_gltf.h>
 
+#include "firmware/export/output_file.h"
 #include "firmware/export/writers.h"
 #include "render/skin.h"
 #include "render/skin_fit.h"
@@ -270,9 +272,20 @@ Result<void> writeGlb(const PoseTrack& track, const JointNames& names, const std
     model.scenes.push_back(scene);
     model.defaultScene = 0;
 
+    // Serialised in memory, then written through OutputFile: the same checks on what the file is
+    // and the same errors (a full disk) as the other formats.
     tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToFile(&model, path, true, true, false, true)) {
+    std::ostringstream glb;
+    if (!writer.WriteGltfSceneToStream(&model, glb, false, true)) {
         return Error{EIO, fmt::format("write '{}': the glTF writer failed", path)};
+    }
+    auto file = OutputFile::open(path);
+    if (!file) {
+        return file.error();
+    }
+    file->write(glb.view());
+    if (auto closed = file->close(); !closed) {
+        return closed;
     }
     if (progress) {
         progress(1.0);

@@ -8,6 +8,7 @@
 #include <toml++/toml.h>
 
 #include "fusion/body/skeleton.h"
+#include "hal/core/input_file.h"
 
 namespace caphub::firmware::exporter {
 
@@ -40,6 +41,21 @@ JointNames hanim() {
     return n;
 }
 
+JointNames openSim() {
+    JointNames n = hanim();
+    n.setName = "opensim";
+    n.stoOnly = true;
+    for (int s = 0; s < board::kSegmentCount; ++s) {
+        const auto i = static_cast<std::size_t>(s);
+        const std::string_view body = openSimBody(static_cast<board::Segment>(s));
+        n.stoColumn[i] = !body.empty();
+        if (!body.empty()) {
+            n.segment[i] = std::string(body);
+        }
+    }
+    return n;
+}
+
 JointNames fromTable(const char* setName, const std::array<const char*, board::kSegmentCount>& t) {
     JointNames n;
     n.setName = setName;
@@ -66,6 +82,50 @@ std::string nameProblem(std::string_view name) {
 }
 
 }  // namespace
+
+std::string_view openSimBody(board::Segment s) {
+    switch (s) {
+        case S::Pelvis:
+            return "pelvis";
+        case S::T12:
+            return "torso";
+        case S::LUpperarm:
+            return "humerus_l";
+        case S::LForearm:
+            return "radius_l";
+        case S::LHand:
+            return "hand_l";
+        case S::RUpperarm:
+            return "humerus_r";
+        case S::RForearm:
+            return "radius_r";
+        case S::RHand:
+            return "hand_r";
+        case S::LThigh:
+            return "femur_l";
+        case S::LCalf:
+            return "tibia_l";
+        case S::LHindfoot:
+            return "calcn_l";
+        case S::LMiddistal:
+            return "toes_l";
+        case S::RThigh:
+            return "femur_r";
+        case S::RCalf:
+            return "tibia_r";
+        case S::RHindfoot:
+            return "calcn_r";
+        case S::RMiddistal:
+            return "toes_r";
+        case S::L5:
+        case S::C7:
+        case S::Skull:
+        case S::LClavicle:
+        case S::RClavicle:
+            return {};
+    }
+    return {};
+}
 
 Result<JointNames> parseJointNames(std::string_view text, const std::string& sourceName) {
     toml::table root;
@@ -133,16 +193,19 @@ Result<JointNames> jointNamesFor(std::string_view spec) {
     if (spec == "unity") {
         return fromTable("unity", kUnity);
     }
-    const std::string path(spec);
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        return Error{ENOENT, fmt::format("--names '{}': expected hanim, cmu, unity or a readable "
-                                         "map file",
-                                         path)};
+    if (spec == "opensim") {
+        return openSim();
     }
-    std::ostringstream text;
-    text << in.rdbuf();
-    return parseJointNames(text.str(), path);
+    const std::string path(spec);
+    auto text = readInputFile(path);
+    if (!text) {
+        return Error{
+            text.error().code,
+            fmt::format("--names '{}': expected hanim, cmu, unity, opensim or a readable map file "
+                        "({})",
+                        path, text.error().message)};
+    }
+    return parseJointNames(*text, path);
 }
 
 }  // namespace caphub::firmware::exporter

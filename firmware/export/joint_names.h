@@ -18,9 +18,20 @@ struct JointNames {
     // (CSV, .sto). They differ only for H-Anim, which names joints and segments separately.
     std::array<std::string, board::kSegmentCount> joint;
     std::array<std::string, board::kSegmentCount> segment;
+    // Whether the segment has a column in a .sto table (the opensim set leaves out the segments
+    // OpenSim's full-body models have no body for), and whether the set names anything but .sto
+    // columns (the opensim set names model bodies, not a skeleton's joints).
+    std::array<bool, board::kSegmentCount> stoColumn;
+    bool stoOnly = false;
+    JointNames() { stoColumn.fill(true); }
 };
 
-// "hanim", "cmu", "unity", or else the path of a map file.
+// The OpenSim body of each segment in OpenSim's common full-body models (Rajagopal 2015, as in
+// the OpenSense tutorials; gait2392 and Hamner 2010 use the same leg and torso names), empty
+// where they have none (l5, c7, skull, the clavicles: the torso body carries them).
+std::string_view openSimBody(board::Segment s);
+
+// "hanim", "cmu", "unity", "opensim", or else the path of a map file.
 Result<JointNames> jointNamesFor(std::string_view spec);
 
 // A map file: "segment = \"name\"" lines (TOML), segment names as in board files; segments not

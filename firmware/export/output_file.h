@@ -1,8 +1,11 @@
 // A text file being written by an exporter: buffered stdio, and every error (open, write,
-// close: a full disk shows up late) turned into one message naming the file.
+// close: a full disk shows up late) turned into one message naming the file. And where an export
+// may write at all: over a regular file (or into the regular file a symbolic link names), never
+// over a directory, a device, a FIFO or a socket.
 #pragma once
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -10,8 +13,17 @@
 
 namespace caphub::firmware::exporter {
 
+// The file an export given `-o path` replaces: `path` when it is a regular file or does not
+// exist yet; for a symbolic link, the regular file it names (the link stays a link). Anything
+// else is refused with what it is: "'P' is a directory", "'P' is a device", "'P' is a FIFO
+// (named pipe)", "'P' is a socket", "'L' is a symbolic link that names 'P', which does not
+// exist", each followed by ": an export writes regular files only".
+Result<std::filesystem::path> regularOutputTarget(const std::string& path);
+
 class OutputFile {
 public:
+    // Creates or truncates a regular file (never follows a symbolic link, never opens a FIFO or
+    // a device that happens to have the name).
     static Result<OutputFile> open(const std::string& path);
     OutputFile(OutputFile&& other) noexcept;
     OutputFile& operator=(OutputFile&&) = delete;

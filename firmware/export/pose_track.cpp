@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -28,6 +29,76 @@ bool finite(const Eigen::Vector3f& v) {
 constexpr double kMaxRateHz = 10000;
 
 }  // namespace
+
+namespace {
+
+// The board file a recording's metadata carries, loaded; or why there is none.
+std::optional<board::Board> boardFromMetadata(const std::string& metadataToml, std::string& why) {
+    std::string boardText;
+    try {
+        const toml::table meta =
+            toml::parse(std::string_view(metadataToml), std::string_view("recording metadata"));
+        if (const auto text = meta["board"]["text"].value<std::string>()) {
+            boardText = *text;
+        }
+    } catch (const toml::parse_error& e) {
+        why = fmt::format("the recording's metadata is not TOML ({})", e.description());
+        return std::nullopt;
+    }
+    if (boardText.empty()) {
+        why = "the recording carries no board file";
+        return std::nullopt;
+    }
+    board::LoadResult loaded = board::loadBoardText(boardText, "recording's board file");
+    if (!loaded.ok()) {
+        why = fmt::format("the recording's board file does not load ({})",
+                          loaded.errors.empty() ? "?" : loaded.errors.front().str());
+        return std::nullopt;
+    }
+    return std::move(loaded.board);
+}
+
+// A [body_calibration] metadata record's calibration, if it is one.
+std::optional<body::BodyCalibration> bodyCalibrationOf(const RecordView& v) {
+    const std::string_view text(reinterpret_cast<const char*>(v.payload.data()), v.payload.size());
+    if (text.find("[body_calibration]") == std::string_view::npos) {
+        return std::nullopt;
+    }
+    try {
+        const toml::table meta = toml::parse(text, std::string_view("metadata record"));
+        const auto cal = meta["body_calibration"]["text"].value<std::string>();
+        if (!cal) {
+            return std::nullopt;
+        }
+        auto parsed = body::parseBodyCalibration(*cal, "body calibration record");
+        if (!parsed) {
+            return std::nullopt;
+        }
+        return *parsed;
+    } catch (const toml::parse_error&) {
+        return std::nullopt;
+    }
+}
+
+}  // namespace
+
+Quatd mountingAt(const PoseTrack& track, board::Segment segment, double tS) {
+    const int s = static_cast<int>(segment);
+    const MountingChange* chosen = nullptr;
+    for (const auto& c : track.calibrations) {
+        if (!body::has(c.mask, s)) {
+            continue;
+        }
+        if (chosen == nullptr || c.tS <= tS) {
+            chosen = &c;
+        }
+        if (c.tS > tS) {
+            break;
+        }
+    }
+    return chosen != nullptr ? chosen->mounting[static_cast<std::size_t>(s)]
+                             : track.nominalMounting[static_cast<std::size_t>(s)];
+}
 
 body::Dimensions dimensionsFromMetadata(const std::string& metadataToml, std::string& source,
                                         board::SubjectConfig& subject) {
@@ -109,6 +180,15 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
     PoseTrack track;
     track.dimensions =
         dimensionsFromMetadata(reader.metadata(), track.subjectSource, track.subject);
+    track.nominalMounting.fill(Quatd::Identity());
+    std::string noBoard;
+    if (const auto b = boardFromMetadata(reader.metadata(), noBoard)) {
+        for (const auto& s : b->sensors) {
+            track.sensors.push_back({s.name, s.segment});
+            track.nominalMounting[static_cast<std::size_t>(s.segment)] = s.mounting;
+        }
+    }
+    std::vector<std::pair<std::int64_t, body::BodyCalibration>> calibrations;
 
     std::vector<RawPose> raw;
     RecordView v;
@@ -120,6 +200,12 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
         if (progress && fileBytes > 0 && ++sinceProgress == 4096) {
             sinceProgress = 0;
             progress(std::min(1.0, static_cast<double>(v.offset) / static_cast<double>(fileBytes)));
+        }
+        if (v.type == cap::RecordType::Metadata) {
+            if (auto cal = bodyCalibrationOf(v)) {
+                calibrations.emplace_back(toNs(v.t), *cal);
+            }
+            continue;
         }
         if (v.type != cap::RecordType::Pose) {
             continue;
@@ -161,6 +247,12 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
 
     const std::int64_t t0 = raw.front().tNs;
     track.recordingDurationS = static_cast<double>(raw.back().tNs - t0) * 1e-9;
+    std::stable_sort(calibrations.begin(), calibrations.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [tNs, cal] : calibrations) {
+        track.calibrations.push_back(
+            {static_cast<double>(tNs - t0) * 1e-9, cal.mask, cal.mounting});
+    }
     if (raw.size() >= 2) {
         // The median interval: robust to the gaps that dropped or damaged records leave.
         std::vector<std::int64_t> dt(raw.size() - 1);

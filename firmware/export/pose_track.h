@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "firmware/recording/reader.h"
+#include "fusion/body/body_calibration.h"
 #include "fusion/body/skeleton.h"
 #include "hal/core/error.h"
 #include "hal/core/quaternion.h"
@@ -30,6 +31,20 @@ struct TrackOptions {
     std::optional<double> rateHz;  // default: the recording's pose rate
 };
 
+// A sensor of the recording's board: its name and the segment it is strapped to.
+struct TrackSensor {
+    std::string name;
+    board::Segment segment = board::Segment::Pelvis;
+};
+
+// The mountings (q_segment_sensor, sensor frame -> segment frame) in effect from a time on: a
+// body calibration recorded in the file ([body_calibration] metadata records).
+struct MountingChange {
+    double tS = 0;  // seconds from the first pose record
+    body::SegmentMask mask = 0;
+    std::array<Quatd, body::kSegmentCount> mounting;
+};
+
 struct PoseTrack {
     std::vector<PoseFrame> frames;  // at t = frames[0].tS + k / rateHz
     double rateHz = 0;
@@ -37,6 +52,11 @@ struct PoseTrack {
     board::SubjectConfig subject;  // the recording's board's, or the default subject
     body::Dimensions dimensions;   // the subject's
     std::string subjectSource;     // where the subject came from, for people
+    // The board's sensors (empty when the recording carries no usable board file), their nominal
+    // mountings, and the body calibrations the capture recorded, in time order.
+    std::vector<TrackSensor> sensors;
+    std::array<Quatd, body::kSegmentCount> nominalMounting;
+    std::vector<MountingChange> calibrations;
     // What the reading met.
     std::uint64_t poseRecords = 0;      // valid pose records read
     std::uint64_t malformedPoses = 0;   // a valid record whose pose could not be used
@@ -62,5 +82,10 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
 
 // Euler-free pose interpolation: slerp of every joint rotation, linear for the root.
 PoseFrame interpolate(const PoseFrame& a, const PoseFrame& b, double alpha);
+
+// The mounting (q_segment_sensor) of the sensor on `segment` at time tS: the latest body
+// calibration at or before tS that calibrated it (the first one, before any), else the board's
+// nominal mounting.
+Quatd mountingAt(const PoseTrack& track, board::Segment segment, double tS);
 
 }  // namespace caphub::firmware::exporter

@@ -14,7 +14,13 @@ WorldPose worldPose(const PoseTrack& track, const PoseFrame& frame) {
     pose.qLocal = frame.qLocal;
     body::worldFromLocal(pose);
     body::forwardKinematics(track.dimensions, frame.rootM, pose);
-    return {pose.qWorld, pose.positionM};
+    WorldPose out{pose.qWorld, pose.positionM, {}};
+    for (int s = 0; s < body::kSegmentCount; ++s) {
+        const auto i = static_cast<std::size_t>(s);
+        out.qSensor[i] =
+            (out.q[i] * mountingAt(track, static_cast<board::Segment>(s), frame.tS)).normalized();
+    }
+    return out;
 }
 
 namespace {
@@ -23,18 +29,25 @@ namespace {
 // rotation), so that a column does not jump sign from one row to the next.
 struct Continuity {
     std::array<Quatd, body::kSegmentCount> previous;
+    std::array<Quatd, body::kSegmentCount> previousSensor;
     bool first = true;
 
     void apply(WorldPose& p) {
-        for (std::size_t s = 0; s < p.q.size(); ++s) {
-            if (first) {
-                p.q[s] = canonical(p.q[s]);
-            } else if (p.q[s].coeffs().dot(previous[s].coeffs()) < 0) {
-                p.q[s].coeffs() *= -1;
-            }
-            previous[s] = p.q[s];
-        }
+        keep(p.q, previous);
+        keep(p.qSensor, previousSensor);
         first = false;
+    }
+
+    void keep(std::array<Quatd, body::kSegmentCount>& q,
+              std::array<Quatd, body::kSegmentCount>& before) const {
+        for (std::size_t s = 0; s < q.size(); ++s) {
+            if (first) {
+                q[s] = canonical(q[s]);
+            } else if (q[s].coeffs().dot(before[s].coeffs()) < 0) {
+                q[s].coeffs() *= -1;
+            }
+            before[s] = q[s];
+        }
     }
 };
 
@@ -91,20 +104,59 @@ Result<void> writeCsv(const PoseTrack& track, const JointNames& names, double un
                      });
 }
 
-Result<void> writeSto(const PoseTrack& track, const JointNames& names, const std::string& path,
-                      const ProgressFn& progress) {
+Result<std::vector<StoColumn>> stoColumns(const PoseTrack& track, const JointNames& names,
+                                          StoOrientations which) {
+    std::vector<StoColumn> columns;
+    if (which == StoOrientations::Sensors) {
+        if (track.sensors.empty()) {
+            return Error{EINVAL,
+                         "the recording carries no board file naming its sensors: export the "
+                         "segments' orientations (--orientations segments)"};
+        }
+        for (const auto& s : track.sensors) {
+            const auto i = static_cast<std::size_t>(s.segment);
+            if (names.stoColumn[i]) {
+                columns.push_back({names.segment[i] + "_imu", s.segment});
+            }
+        }
+    } else {
+        for (int s = 0; s < body::kSegmentCount; ++s) {
+            const auto i = static_cast<std::size_t>(s);
+            if (names.stoColumn[i]) {
+                columns.push_back({names.segment[i] + "_imu", static_cast<board::Segment>(s)});
+            }
+        }
+    }
+    if (columns.empty()) {
+        return Error{EINVAL,
+                     fmt::format("no .sto column: no {} has a name in the '{}' set",
+                                 which == StoOrientations::Sensors ? "sensor's segment" : "segment",
+                                 names.setName)};
+    }
+    return columns;
+}
+
+Result<void> writeSto(const PoseTrack& track, const JointNames& names, StoOrientations which,
+                      const std::string& path, const ProgressFn& progress) {
+    auto columns = stoColumns(track, names, which);
+    if (!columns) {
+        return columns.error();
+    }
     std::string header = fmt::format(
         "DataRate={:.6f}\nDataType=Quaternion\nversion=3\nOpenSimVersion=4.1\nendheader\ntime",
         track.rateHz);
-    for (const auto& n : names.segment) {
-        header += fmt::format("\t{}_imu", n);
+    for (const auto& c : *columns) {
+        header += "\t" + c.label;
     }
     header += '\n';
+    const bool sensors = which == StoOrientations::Sensors;
     return writeRows(
-        track, header, path, progress, [](std::string& out, double tS, const WorldPose& p) {
+        track, header, path, progress, [&](std::string& out, double tS, const WorldPose& p) {
             auto it = std::back_inserter(out);
             fmt::format_to(it, "{:.6f}", tS);
-            for (const Quatd& q : p.q) {
+            for (const auto& c : *columns) {
+                const auto i = static_cast<std::size_t>(c.segment);
+                const Quatd& q = sensors ? p.qSensor[i] : p.q[i];
                 fmt::format_to(it, "\t{:.7f},{:.7f},{:.7f},{:.7f}", q.w(), q.x(), q.y(), q.z());
             }
             out += '\n';

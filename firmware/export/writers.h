@@ -26,10 +26,27 @@ Result<void> writeBvh(const PoseTrack& track, const JointNames& names, const Bvh
 Result<void> writeCsv(const PoseTrack& track, const JointNames& names, double unitsPerM,
                       const std::string& path, const ProgressFn& progress = {});
 
-// OpenSim OpenSense orientation table (.sto): DataType=Quaternion, one "<segment>_imu" column
-// per segment holding its world orientation as "w,x,y,z".
-Result<void> writeSto(const PoseTrack& track, const JointNames& names, const std::string& path,
-                      const ProgressFn& progress = {});
+// Whose orientations a .sto table holds.
+enum class StoOrientations {
+    Sensors,   // each sensor's (segment orientation x its mounting): what OpenSense expects
+    Segments,  // each segment's
+};
+
+// The .sto columns: one per sensor of the recording's board (board order) or per segment
+// (segment order), each "<segment name>_imu", leaving out the segments names.stoColumn leaves
+// out. Errors: sensors asked for and the recording names none; no column at all.
+struct StoColumn {
+    std::string label;
+    board::Segment segment = board::Segment::Pelvis;
+};
+Result<std::vector<StoColumn>> stoColumns(const PoseTrack& track, const JointNames& names,
+                                          StoOrientations which);
+
+// OpenSim OpenSense orientation table (.sto): DataRate, DataType=Quaternion, version=3,
+// OpenSimVersion, endheader, then "time" and the columns, each cell an orientation in the
+// skeleton world frame as "w,x,y,z".
+Result<void> writeSto(const PoseTrack& track, const JointNames& names, StoOrientations which,
+                      const std::string& path, const ProgressFn& progress = {});
 
 // Binary glTF 2.0: the default skin's mesh bound to a 21-joint node tree, and one animation
 // (a rotation channel per joint, the root's translation; LINEAR; seconds from the first frame).
@@ -40,6 +57,8 @@ Result<void> writeGlb(const PoseTrack& track, const JointNames& names, const std
 struct WorldPose {
     std::array<Quatd, body::kSegmentCount> q;
     std::array<Vec3d, body::kSegmentCount> positionM;
+    // The orientation of the sensor on each segment: q * mountingAt(segment, t).
+    std::array<Quatd, body::kSegmentCount> qSensor;
 };
 WorldPose worldPose(const PoseTrack& track, const PoseFrame& frame);
 

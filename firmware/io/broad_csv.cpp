@@ -12,6 +12,8 @@
 #include <fmt/format.h>
 #include <zlib.h>
 
+#include "hal/core/input_file.h"
+
 namespace caphub::firmware {
 
 namespace {
@@ -118,6 +120,9 @@ std::string nameFromComment(std::string_view comment) {
 
 Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
     errno = 0;
+    if (auto ok = checkInputFile(path); !ok) {
+        return ok.error();
+    }
     GzFile f(gzopen(path.c_str(), "rb"));
     if (!f) {
         return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));

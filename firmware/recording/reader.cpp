@@ -4,6 +4,7 @@
 #include <cerrno>
 
 #include "firmware/recording/crc32c.h"
+#include "hal/core/input_file.h"
 
 namespace caphub::firmware {
 
@@ -14,11 +15,11 @@ constexpr std::size_t kChunk = 64 * 1024;
 }
 
 Result<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::string& path) {
-    std::FILE* f = std::fopen(path.c_str(), "rbe");
-    if (f == nullptr) {
-        return errnoError(errno, "cannot open recording '" + path + "'");
+    auto f = openInputFile(path);
+    if (!f) {
+        return Error{f.error().code, "cannot open recording: " + f.error().message};
     }
-    return openStream(f, path);
+    return openStream(*f, path);
 }
 
 Result<std::unique_ptr<RecordingReader>> RecordingReader::fromMemory(

@@ -126,9 +126,11 @@ TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
     EXPECT_THAT(r.output, HasSubstr("\"running\": false"));
     EXPECT_THAT(r.output, HasSubstr("\"name\": \"l_forearm\""));
     EXPECT_THAT(r.output, HasSubstr("\"latency_ms\""));
+    // A file named that is not there is a file given that cannot be used (2); no status where
+    // the hub keeps it by default is the answer "no hub" (1, tests/firmware/file_faults_cli_test).
     const CliRun none = caphub("status --file " + dir + "/absent.json");
-    EXPECT_EQ(none.exitCode, 1);
-    EXPECT_THAT(none.output, HasSubstr("no hub has run here"));
+    EXPECT_EQ(none.exitCode, 2);
+    EXPECT_THAT(none.output, HasSubstr("No such file or directory"));
 }
 
 // The recording's durability interval: with --sync-ms 50 a 1 s capture is made durable about 20

@@ -424,7 +424,8 @@ TEST(EvaluateCli, PrintsThePipelineFactsAndThePerJointTable) {
 TEST(EvaluateCli, RejectsAMissingClipWithExitCode2) {
     const auto r = caphub::testing::caphub("evaluate --bvh /nonexistent/walk.bvh");
     EXPECT_EQ(r.exitCode, 2) << r.output;
-    EXPECT_NE(r.output.find("'/nonexistent/walk.bvh': no such file"), std::string::npos)
+    EXPECT_NE(r.output.find("open '/nonexistent/walk.bvh': No such file or directory"),
+              std::string::npos)
         << r.output;
 }
 

@@ -138,7 +138,7 @@ TEST(ExportCli, RecordingWithoutPosesFailsWithTheReason) {
     o.withPoses = false;
     caphub::firmware::testing::writeWalkRecording(rec, o);
     const CliRun r = caphub("export " + rec + " --format bvh -o " + temp("raw.bvh"));
-    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_EQ(r.exitCode, 2);  // the recording given has nothing to export
     EXPECT_THAT(r.output, HasSubstr("no pose records: was the body stage on?"));
 }
 

@@ -65,8 +65,21 @@ std::vector<RecordedPose> writeWalkRecording(const std::string& path,
     std::vector<RecordedPose> poses;
     const auto n = static_cast<int>(std::llround(options.seconds * options.rateHz));
     bs::SuitState state;
+    const auto calibrationNs =
+        options.startNs + static_cast<std::int64_t>(std::llround(options.calibrationAtS * 1e9));
+    bool calibrationWritten = options.bodyCalibrationText.empty();
     for (int k = 0; k < n; ++k) {
         const auto tNs = static_cast<std::int64_t>(std::llround(k * 1e9 / options.rateHz));
+        if (!calibrationWritten && options.startNs + tNs >= calibrationNs) {
+            toml::table record{
+                {"body_calibration", toml::table{{"text", options.bodyCalibrationText}}}};
+            std::stringstream text;
+            text << record;
+            if ((*writer)->writeMetadata(timestampFromNs(calibrationNs), text.str()) != 0) {
+                throw std::runtime_error("writeMetadata failed");
+            }
+            calibrationWritten = true;
+        }
         walk().evaluateAll(tNs, state);
         RecordedPose p;
         p.tNs = options.startNs + tNs;

@@ -27,6 +27,10 @@ struct WalkRecordingOptions {
     std::int64_t startNs = 5'000'000'000;  // the capture clock does not start at 0
     double heightM = 1.75;                 // written into the embedded board file
     bool withPoses = true;                 // false: raw samples only (no body stage)
+    // Written as a [body_calibration] metadata record at startNs + calibrationAtS, as the
+    // capture does (docs/body-calibration.md, "In recordings"); empty: none.
+    std::string bodyCalibrationText;
+    double calibrationAtS = 0;
 };
 
 // Writes the recording (replacing any file at path) and returns the poses it holds.

@@ -19,10 +19,13 @@
 #include <tiny_gltf.h>
 #include <unistd.h>
 
+#include "board/loader.h"
 #include "board/sim/bvh.h"
 #include "firmware/export/euler.h"
 #include "firmware/export/joint_names.h"
 #include "firmware/recording/reader.h"
+#include "firmware/recording/writer.h"
+#include "fusion/body/body_calibration.h"
 #include "fusion/body/skeleton.h"
 #include "render/skin.h"
 #include "tests/firmware/export_fixture.h"
@@ -329,7 +332,8 @@ TEST(ExportNames, MapFileErrorsNameTheFileAndLine) {
 TEST(ExportNames, MissingMapFileIsAnError) {
     auto n = jointNamesFor(temp("no-such-names.toml"));
     ASSERT_FALSE(n.ok());
-    EXPECT_THAT(n.error().message, HasSubstr("expected hanim, cmu, unity or a readable map file"));
+    EXPECT_THAT(n.error().message,
+                HasSubstr("expected hanim, cmu, unity, opensim or a readable map file"));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -491,9 +495,16 @@ TEST(ExportCsv, HeaderRowsAndPositionsInTheChosenUnit) {
     }
 }
 
+ExportOptions stoOf(StoOrientations which, const std::string& names = "hanim") {
+    ExportOptions o = as(Format::Sto);
+    o.stoOrientations = which;
+    o.names = names;
+    return o;
+}
+
 TEST(ExportSto, OpenSenseHeaderImuColumnsAndWxyzCells) {
     const std::string out = temp("walk.sto");
-    exportOk(walkPath(), out, as(Format::Sto));
+    exportOk(walkPath(), out, stoOf(StoOrientations::Segments));
     const auto rows = lines(readText(out));
     ASSERT_EQ(rows.size(), 6 + walk().size());
     EXPECT_EQ(rows[0], "DataRate=100.000000");
@@ -521,7 +532,7 @@ TEST(ExportSto, OpenSenseHeaderImuColumnsAndWxyzCells) {
 
 TEST(ExportSto, QuaternionColumnsDoNotFlipSign) {
     const std::string out = temp("flip.sto");
-    exportOk(walkPath(), out, as(Format::Sto));
+    exportOk(walkPath(), out, stoOf(StoOrientations::Segments));
     const auto rows = lines(readText(out));
     std::vector<Eigen::Vector4d> previous(21);
     for (std::size_t r = 6; r < rows.size(); ++r) {
@@ -536,6 +547,159 @@ TEST(ExportSto, QuaternionColumnsDoNotFlipSign) {
             previous[s] = q;
         }
     }
+}
+
+// The sensors' orientations, the default: one column per sensor of the recording's board, in its
+// order, each the segment's world orientation times the sensor's mounting (q_world_sensor =
+// q_world_segment q_segment_sensor): without a body calibration in the file the board's nominal
+// mountings.
+TEST(ExportSto, SensorColumnsHoldEachSensorsOrientationThroughItsNominalMounting) {
+    const board::LoadResult suit =
+        board::loadBoardFile(std::filesystem::path(CAPHUB_SOURCE_DIR) / "board/sim-suit.toml");
+    ASSERT_TRUE(suit.ok());
+    const std::string out = temp("sensors.sto");
+    exportOk(walkPath(), out, as(Format::Sto));  // sensors by default
+    const auto rows = lines(readText(out));
+    ASSERT_EQ(rows.size(), 6 + walk().size());
+    const auto header = split(rows[5], '\t');
+    ASSERT_EQ(header.size(), 1 + suit.board->sensors.size());
+    for (std::size_t c = 0; c < suit.board->sensors.size(); ++c) {
+        EXPECT_EQ(header[c + 1],
+                  std::string(board::segmentName(suit.board->sensors[c].segment)) + "_imu");
+    }
+    // Not trivially the segments': the shipped suit's nominal mountings are not all identity.
+    double largestMountingDeg = 0;
+    for (std::size_t r : {0u, 150u, 299u}) {
+        const auto cells = split(rows[6 + r], '\t');
+        for (std::size_t c = 0; c < suit.board->sensors.size(); ++c) {
+            const auto& sensor = suit.board->sensors[c];
+            const auto wxyz = split(cells[c + 1], ',');
+            ASSERT_EQ(wxyz.size(), 4u);
+            const Quatd q = Quatd(std::stod(wxyz[0]), std::stod(wxyz[1]), std::stod(wxyz[2]),
+                                  std::stod(wxyz[3]))
+                                .normalized();
+            const Quatd expected =
+                walk()[r].qWorld[static_cast<std::size_t>(sensor.segment)] * sensor.mounting;
+            // float poses in the file, 7 decimals per component: well within 0.01 deg.
+            EXPECT_LT(angleBetween(q, expected) * kDeg, 0.01) << r << " " << sensor.name;
+            largestMountingDeg = std::max(largestMountingDeg,
+                                          angleBetween(sensor.mounting, Quatd::Identity()) * kDeg);
+        }
+    }
+    EXPECT_GT(largestMountingDeg, 10.0);
+}
+
+// A body calibration recorded in the file gives the mountings from its time on (and before it,
+// since the capture writes no pose before its first calibration).
+TEST(ExportSto, SensorColumnsFollowTheRecordedBodyCalibration) {
+    body::BodyCalibration cal;
+    cal.method = body::CalibrationMethod::TPose;
+    std::mt19937 rng(7);
+    std::normal_distribution<double> n(0, 1);
+    for (int s : {body::idx(body::Segment::Pelvis), body::idx(body::Segment::LCalf)}) {
+        cal.mask |= body::SegmentMask{1} << s;
+        cal.mounting[static_cast<std::size_t>(s)] =
+            Quatd(n(rng), n(rng), n(rng), n(rng)).normalized();
+    }
+    WalkRecordingOptions o;
+    o.bodyCalibrationText = body::toText(cal);
+    o.calibrationAtS = 1.0;
+    const std::string rec = temp("calibrated.cap");
+    const auto poses = writeWalkRecording(rec, o);
+    const std::string out = temp("calibrated.sto");
+    exportOk(rec, out, as(Format::Sto));
+    const board::LoadResult suit =
+        board::loadBoardFile(std::filesystem::path(CAPHUB_SOURCE_DIR) / "board/sim-suit.toml");
+    ASSERT_TRUE(suit.ok());
+    const auto rows = lines(readText(out));
+    const auto header = split(rows[5], '\t');
+    const auto column = [&](const std::string& label) {
+        return static_cast<std::size_t>(std::find(header.begin(), header.end(), label) -
+                                        header.begin());
+    };
+    for (std::size_t r : {0u, 99u, 100u, 250u}) {
+        const auto cells = split(rows[6 + r], '\t');
+        for (auto [label, segment] : {std::pair{"pelvis_imu", body::Segment::Pelvis},
+                                      std::pair{"l_calf_imu", body::Segment::LCalf},
+                                      std::pair{"r_calf_imu", body::Segment::RCalf}}) {
+            const auto c = column(label);
+            ASSERT_LT(c, header.size()) << label;
+            const auto wxyz = split(cells[c], ',');
+            const Quatd q = Quatd(std::stod(wxyz[0]), std::stod(wxyz[1]), std::stod(wxyz[2]),
+                                  std::stod(wxyz[3]))
+                                .normalized();
+            const auto i = static_cast<std::size_t>(body::idx(segment));
+            Quatd mounting = cal.mounting[i];
+            if (!body::has(cal.mask, body::idx(segment))) {
+                for (const auto& sc : suit.board->sensors) {
+                    if (sc.segment == segment) {
+                        mounting = sc.mounting;  // not calibrated: the nominal one
+                    }
+                }
+            }
+            EXPECT_LT(angleBetween(q, poses[r].qWorld[i] * mounting) * kDeg, 0.01)
+                << r << " " << label;
+        }
+    }
+}
+
+// --names opensim: the body names of OpenSim's full-body models, whose IMU placer finds a body
+// by taking "_imu" off the column label; sensors on segments those models have no body for
+// (the head, the clavicles) are left out.
+TEST(ExportSto, OpenSimNamesGiveTheModelsBodies) {
+    const std::string sensors = temp("opensim-sensors.sto");
+    exportOk(walkPath(), sensors, stoOf(StoOrientations::Sensors, "opensim"));
+    EXPECT_EQ(lines(readText(sensors))[5],
+              "time\tpelvis_imu\ttorso_imu\thumerus_l_imu\tradius_l_imu\thand_l_imu\t"
+              "humerus_r_imu\tradius_r_imu\thand_r_imu\tfemur_l_imu\ttibia_l_imu\tcalcn_l_imu\t"
+              "femur_r_imu\ttibia_r_imu\tcalcn_r_imu");
+    const std::string segments = temp("opensim-segments.sto");
+    exportOk(walkPath(), segments, stoOf(StoOrientations::Segments, "opensim"));
+    const auto rows = lines(readText(segments));
+    EXPECT_EQ(rows[5],
+              "time\tpelvis_imu\ttorso_imu\thumerus_l_imu\tradius_l_imu\thand_l_imu\t"
+              "humerus_r_imu\tradius_r_imu\thand_r_imu\tfemur_l_imu\ttibia_l_imu\tcalcn_l_imu\t"
+              "toes_l_imu\tfemur_r_imu\ttibia_r_imu\tcalcn_r_imu\ttoes_r_imu");
+    // torso_imu is the t12 segment's orientation.
+    const auto cells = split(rows[6 + 42], '\t');
+    const auto wxyz = split(cells[2], ',');
+    const Quatd q(std::stod(wxyz[0]), std::stod(wxyz[1]), std::stod(wxyz[2]), std::stod(wxyz[3]));
+    EXPECT_LT(
+        angleBetween(q.normalized(),
+                     walk()[42].qWorld[static_cast<std::size_t>(body::idx(body::Segment::T12))]) *
+            kDeg,
+        0.01);
+}
+
+TEST(ExportSto, OpenSimNamesAreForStoOnlyAndSensorsNeedABoard) {
+    ExportOptions bvh = as(Format::Bvh);
+    bvh.names = "opensim";
+    FailureKind kind = FailureKind::Work;
+    auto r = exportRecording(walkPath(), temp("opensim.bvh"), bvh, {}, &kind);
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message, HasSubstr("for --format sto only"));
+    EXPECT_EQ(kind, FailureKind::Input);
+
+    // A recording without a board file: no sensors to name.
+    const std::string rec = temp("boardless.cap");
+    {
+        auto writer = RecordingWriter::create(rec, "[recording]\nsoftware = \"test\"\n");
+        ASSERT_TRUE(writer.ok());
+        std::array<Eigen::Quaternionf, board::kSegmentCount> q;
+        q.fill(Eigen::Quaternionf::Identity());
+        for (int k = 0; k < 3; ++k) {
+            ASSERT_EQ(
+                (*writer)->writePose(timestampFromNs(k * 10'000'000), Eigen::Vector3f::Zero(), q),
+                0);
+        }
+        ASSERT_EQ((*writer)->close(), 0);
+    }
+    kind = FailureKind::Work;
+    r = exportRecording(rec, temp("boardless.sto"), as(Format::Sto), {}, &kind);
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message, HasSubstr("--orientations segments"));
+    EXPECT_EQ(kind, FailureKind::Input);
+    exportOk(rec, temp("boardless-segments.sto"), stoOf(StoOrientations::Segments));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -81,7 +81,7 @@ TEST(CliFusionReplay, ARateTheFilterCannotRunAtIsAnError) {
         ::testing::TempDir() + "caphub-fusion-rate-" + std::to_string(getpid()) + ".csv", -1, 0.0,
         "1e9");
     const CliRun r = caphub("fusion replay --in " + in);
-    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_EQ(r.exitCode, 2) << r.output;  // the file given cannot be used
     EXPECT_THAT(r.output, HasSubstr(in));
     EXPECT_THAT(r.output, HasSubstr("cannot run at 1e+09 Hz"));
 }

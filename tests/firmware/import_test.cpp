@@ -1,0 +1,312 @@
+// caphub import of Xsens MT Manager text exports: the files' samples, orientations and packet
+// gaps into a .cap that `caphub info` reads, and malformed input reported as file:line:column.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include "firmware/io/xsens_text.h"
+#include "firmware/recording/reader.h"
+#include "tests/firmware/cli_run.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+using caphub::testing::caphub;
+using caphub::testing::CliRun;
+
+const std::string kShank =
+    std::string(CAPHUB_TEST_DATA_DIR) + "/xsens/MT_012005D6_031-000_00B421AF.txt";
+const std::string kThigh =
+    std::string(CAPHUB_TEST_DATA_DIR) + "/xsens/MT_012005D6_031-000_00B4227B.txt";
+
+std::string temp(const std::string& name) {
+    const std::string d = ::testing::TempDir() + "caphub_import_" + std::to_string(getpid());
+    fs::create_directories(d);
+    return d + "/" + name;
+}
+
+std::string readAll(const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+std::vector<std::string> lines(const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    std::string l;
+    while (std::getline(in, l)) {
+        out.push_back(l);
+    }
+    return out;
+}
+
+std::string writeLines(const std::string& name, const std::vector<std::string>& ls) {
+    const std::string p = temp(name);
+    std::ofstream out(p, std::ios::binary | std::ios::trunc);
+    for (const auto& l : ls) {
+        out << l << "\n";
+    }
+    return p;
+}
+
+std::string mapFile() {
+    const std::string p = temp("map.toml");
+    std::ofstream(p) << "height_m = 1.80\n[sensors]\n00B421AF = \"r_calf\"\n"
+                        "00B4227B = \"r_thigh\"\n";
+    return p;
+}
+
+TEST(XsensText, ReadsTheSamplesTheRateAndTheOrientationMatrix) {
+    auto f = caphub::firmware::readXsensText(kShank);
+    ASSERT_TRUE(f.ok()) << f.error().message;
+    EXPECT_EQ(f->deviceId, "00B421AF");
+    EXPECT_DOUBLE_EQ(f->rateHz, 100.0);
+    EXPECT_EQ(f->separator, '\t');
+    ASSERT_EQ(f->samples.size(), 300u);
+    EXPECT_EQ(f->firstCounter, 3583);
+    EXPECT_EQ(f->samples.back().packet, 299);
+    EXPECT_EQ(f->lostPackets, 0);
+    EXPECT_EQ(f->orientationColumns, "matrix");
+    // The first row: Acc 3.030769 5.254238 -7.714005, Gyr 0.005991 -0.032133 0.022713.
+    const auto& s = f->samples.front();
+    EXPECT_DOUBLE_EQ(s.accMps2.x(), 3.030769);
+    EXPECT_DOUBLE_EQ(s.accMps2.z(), -7.714005);
+    EXPECT_DOUBLE_EQ(s.gyrRadps.y(), -0.032133);
+    ASSERT_TRUE(s.mag.has_value());
+    EXPECT_DOUBLE_EQ(s.mag->z(), 0.897217);
+    // Mat[r][c] is the rotation sensor -> earth: its third row takes the accelerometer's
+    // reading at rest to +g up (the leg is still at the start); 6 decimals in the file.
+    ASSERT_TRUE(s.qEarthSensor.has_value());
+    const Eigen::Vector3d up = *s.qEarthSensor * s.accMps2;
+    EXPECT_NEAR(up.z(), s.accMps2.norm(), 0.01);
+    EXPECT_NEAR(up.head<2>().norm(), 0.0, 0.1);
+}
+
+TEST(XsensText, CommasAndQuaternionColumnsAreReadToo) {
+    auto f = caphub::firmware::readXsensText(
+        writeLines("MT_X_00000001.txt",
+                   {"// Update Rate: 60.0Hz",
+                    "PacketCounter,Acc_X,Acc_Y,Acc_Z,Gyr_X,Gyr_Y,Gyr_Z,"
+                    "Quat_q0,Quat_q1,Quat_q2,Quat_q3",
+                    "65534,0,0,9.81,0,0,0,1,0,0,0", "65535,0,0,9.81,0,0,0,0.7071068,0,0,0.7071068",
+                    "1,0,0,9.81,0,0,0,1,0,0,0"}));
+    ASSERT_TRUE(f.ok()) << f.error().message;
+    EXPECT_EQ(f->deviceId, "00000001");
+    EXPECT_EQ(f->separator, ',');
+    EXPECT_EQ(f->orientationColumns, "quaternion");
+    EXPECT_FALSE(f->hasMag);
+    ASSERT_EQ(f->samples.size(), 3u);
+    EXPECT_NEAR(f->samples[1].qEarthSensor->z(), 0.7071068, 1e-6);  // normalised
+    // The counter wraps at 16 bits: 65535 -> 1 loses packet 0.
+    EXPECT_EQ(f->samples[2].packet, 3);
+    EXPECT_EQ(f->lostPackets, 1);
+    ASSERT_EQ(f->gaps.size(), 1u);
+    EXPECT_EQ(f->gaps[0].line, 5);
+}
+
+TEST(XsensText, MalformedInputNamesFileLineAndColumn) {
+    auto rows = lines(readAll(kShank));
+    rows.resize(12);
+    // Line 9: the 16th cell (Acc_Y) replaced by a word.
+    auto bad = rows;
+    {
+        std::string& l = bad[8];
+        std::size_t at = 0;
+        for (int tab = 0; tab < 15; ++tab) {
+            at = l.find('\t', at) + 1;
+        }
+        const std::size_t end = l.find('\t', at);
+        l.replace(at, end - at, "oops");
+        const std::string p = writeLines("MT_bad_00B421AF.txt", bad);
+        auto f = caphub::firmware::readXsensText(p);
+        ASSERT_FALSE(f.ok());
+        EXPECT_EQ(f.error().message,
+                  p + ":9:" + std::to_string(at + 1) + ": Acc_Y: expected a number, found 'oops'");
+    }
+    // A row with a cell missing.
+    auto shortRow = rows;
+    shortRow[10] = shortRow[10].substr(0, shortRow[10].rfind('\t'));
+    const std::string ps = writeLines("MT_short_00B421AF.txt", shortRow);
+    auto s = caphub::firmware::readXsensText(ps);
+    ASSERT_FALSE(s.ok());
+    EXPECT_THAT(s.error().message, HasSubstr(ps + ":11:1: expected 32 cells as in the header, "
+                                                  "found 31"));
+    // A repeated packet.
+    auto repeated = rows;
+    repeated[9] = repeated[8];
+    const std::string pr = writeLines("MT_rep_00B421AF.txt", repeated);
+    auto r = caphub::firmware::readXsensText(pr);
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message, HasSubstr(pr + ":10:1: PacketCounter 3585 after 3585"));
+    // No rate line.
+    auto noRate = rows;
+    noRate.erase(noRate.begin() + 1);
+    const std::string pn = writeLines("MT_norate_00B421AF.txt", noRate);
+    auto n = caphub::firmware::readXsensText(pn);
+    ASSERT_FALSE(n.ok());
+    EXPECT_THAT(n.error().message, HasSubstr(pn + ":5:1: no '// Update Rate: ...Hz' line"));
+    // A missing required column.
+    auto noGyr = rows;
+    noGyr[5].replace(noGyr[5].find("Gyr_Z"), 5, "Gyr_W");
+    const std::string pg = writeLines("MT_nogyr_00B421AF.txt", noGyr);
+    auto g = caphub::firmware::readXsensText(pg);
+    ASSERT_FALSE(g.ok());
+    EXPECT_THAT(g.error().message, HasSubstr(pg + ":6:1: the header has no Gyr_Z column"));
+}
+
+// The shipped excerpt of the two MTw on one leg, with 5 packets of the thigh's taken out: every
+// sample is in the .cap, the gap is an event pair, and info describes it.
+TEST(ImportCli, TwoXsensSensorsBecomeARecordingThatInfoDescribes) {
+    auto thigh = lines(readAll(kThigh));
+    thigh.erase(thigh.begin() + 6 + 100, thigh.begin() + 6 + 105);  // packets 3683-3687
+    const std::string thighWithGap = writeLines("MT_012005D6_031-000_00B4227B.txt", thigh);
+    const std::string out = temp("leg.cap");
+    fs::remove(out);
+    const CliRun r =
+        caphub("import " + kShank + " " + thighWithGap + " --map " + mapFile() + " -o " + out);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("00B421AF (" + kShank +
+                                    "): 300 samples at 100 Hz on r_calf, 0 lost in 0 gap(s), "
+                                    "orientation (matrix)"));
+    EXPECT_THAT(r.output, HasSubstr("295 samples at 100 Hz on r_thigh, 5 lost in 1 gap(s)"));
+
+    auto reader = caphub::firmware::RecordingReader::open(out);
+    ASSERT_TRUE(reader.ok()) << reader.error().message;
+    int raw[2] = {0, 0};
+    int orientations = 0;
+    caphub::firmware::RecordView v;
+    caphub::Timestamp firstThigh{};
+    caphub::Timestamp lastThigh{};
+    while ((*reader)->next(v) == 1) {
+        int sensor = -1;
+        caphub::hal::ImuSample s;
+        if (caphub::firmware::decodeRawSample(v, sensor, s)) {
+            ASSERT_TRUE(sensor == 0 || sensor == 1);
+            if (sensor == 1) {
+                if (raw[1] == 0) {
+                    firstThigh = s.t;
+                }
+                lastThigh = s.t;
+                EXPECT_TRUE(s.flags & caphub::hal::ImuSample::kMagFresh);
+                EXPECT_NEAR(s.magUt.norm(), 50.0, 10.0);  // normalised units x 50 uT
+            }
+            ++raw[sensor];
+        }
+        orientations += v.type == caphub::firmware::cap::RecordType::Orientation ? 1 : 0;
+    }
+    EXPECT_EQ(raw[0], 300);
+    EXPECT_EQ(raw[1], 295);
+    EXPECT_EQ(orientations, 595);
+    // Packets 3583..3882 at 100 Hz: the gap keeps the time base.
+    EXPECT_EQ(caphub::toNs(lastThigh - firstThigh), 2'990'000'000);
+
+    const CliRun info = caphub("info " + out);
+    ASSERT_EQ(info.exitCode, 0) << info.output;
+    EXPECT_THAT(info.output, HasSubstr("raw sample   595"));
+    EXPECT_THAT(info.output, HasSubstr("segments = [\"r_calf\", \"r_thigh\"]"));
+    EXPECT_THAT(info.output, HasSubstr("lost_samples = 5"));
+    EXPECT_THAT(info.output, HasSubstr("sensor lost  sensor 1: 5 packet(s) missing in " +
+                                       thighWithGap + " before line 107"));
+}
+
+// Poses from the vendor's orientations after an N-pose calibration over the first second (the
+// leg stands still at the start of the take): export and replay take the imported take.
+TEST(ImportCli, AnImportedTakeHasPosesThatExportAndReplayTake) {
+    const std::string out = temp("posed.cap");
+    fs::remove(out);
+    const CliRun r = caphub("import " + kShank + " " + kThigh + " --map " + mapFile() + " -o " +
+                            out + " --pose-rate 50");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("body calibration: npose pose at 1.000 s"));
+    // 3 s of samples, the first second for the calibration: 2 s of poses at 50 Hz.
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(poses: (\d+) at 50 Hz)"))) << r.output;
+    EXPECT_NEAR(std::stoi(m[1]), 100, 2);
+
+    const std::string sto = temp("posed.sto");
+    const CliRun ex = caphub("export " + out + " --format sto --names opensim -o " + sto);
+    ASSERT_EQ(ex.exitCode, 0) << ex.output;
+    EXPECT_EQ(lines(readAll(sto))[5], "time\ttibia_r_imu\tfemur_r_imu");
+
+    // The segments, standing still in the N-pose they were calibrated in: the knee (thigh to
+    // shank) straight within 2 deg (0.4 deg measured on this take).
+    const std::string segments = temp("posed-segments.sto");
+    ASSERT_EQ(caphub("export " + out + " --format sto --names opensim --orientations segments -o " +
+                     segments)
+                  .exitCode,
+              0);
+    const auto rows = lines(readAll(segments));
+    ASSERT_GT(rows.size(), 7u);
+    const auto header = rows[5];
+    const auto cellsOf = [](const std::string& row) {
+        std::vector<std::string> c;
+        std::istringstream in(row);
+        std::string cell;
+        while (std::getline(in, cell, '\t')) {
+            c.push_back(cell);
+        }
+        return c;
+    };
+    const auto names = cellsOf(header);
+    const auto values = cellsOf(rows[6]);
+    const auto quat = [&](const std::string& label) {
+        const auto at = std::find(names.begin(), names.end(), label) - names.begin();
+        double w = 0, x = 0, y = 0, z = 0;
+        char comma = 0;
+        std::istringstream(values[static_cast<std::size_t>(at)]) >> w >> comma >> x >> comma >> y >>
+            comma >> z;
+        return Eigen::Quaterniond(w, x, y, z).normalized();
+    };
+    const double kneeDeg = quat("femur_r_imu").angularDistance(quat("tibia_r_imu")) * 180 / M_PI;
+    EXPECT_LT(kneeDeg, 2.0);
+
+    const CliRun bvh = caphub("export " + out + " --format bvh -o " + temp("posed.bvh"));
+    EXPECT_EQ(bvh.exitCode, 0) << bvh.output;
+    const CliRun replay =
+        caphub("replay " + out + " --preview png:" + temp("frames") + " --speed 0 --fps 5");
+    EXPECT_EQ(replay.exitCode, 0) << replay.output;
+    EXPECT_TRUE(fs::exists(temp("frames") + "/frame_000000.png"));
+}
+
+TEST(ImportCli, BadMapsAndUnmappedSensorsAreUsageErrors) {
+    const std::string out = temp("bad.cap");
+    const std::string onlyShank = temp("only-shank.toml");
+    std::ofstream(onlyShank) << "[sensors]\n00B421AF = \"r_calf\"\n";
+    CliRun r = caphub("import " + kShank + " " + kThigh + " --map " + onlyShank + " -o " + out);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("sensor 00B4227B has no segment in " + onlyShank));
+
+    const std::string badSegment = temp("bad-segment.toml");
+    std::ofstream(badSegment) << "height_m = 1.8\n[sensors]\n00B421AF = \"shin\"\n";
+    r = caphub("import " + kShank + " --map " + badSegment + " -o " + out);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(badSegment + ":3:12: sensors.00B421AF: expected a segment"));
+
+    const std::string twice = temp("twice.toml");
+    std::ofstream(twice) << "[sensors]\n00B421AF = \"r_calf\"\n00B4227B = \"r_calf\"\n";
+    r = caphub("import " + kShank + " --map " + twice + " -o " + out);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("segment 'r_calf' is already sensor 00B421AF's"));
+    EXPECT_FALSE(fs::exists(out));
+
+    // An existing file is not overwritten.
+    std::ofstream(out) << "keep";
+    r = caphub("import " + kShank + " --map " + mapFile() + " -o " + out);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_EQ(readAll(out), "keep");
+}
+
+}  // namespace
