@@ -21,6 +21,8 @@ packages=(
   # Render: OSMesa, PNG, JPEG, HTTP, glTF.
   libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
   nlohmann-json3-dev libstb-dev
+  # Live streams: OSC (VMC, VRChat, caphub's own) with liblo; its oscdump in the stream tests.
+  liblo-dev liblo-tools
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
 )
