@@ -23,6 +23,8 @@ packages=(
   nlohmann-json3-dev libstb-dev
   # Live streams: OSC (VMC, VRChat, caphub's own) with liblo; its oscdump in the stream tests.
   liblo-dev liblo-tools
+  # The Blender add-on's test: Debian's Blender 3.4 headless; numpy for its glTF importer.
+  blender python3-numpy
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
 )
