@@ -81,10 +81,21 @@ struct DisplayConfig {
     double fps = 30;
 };
 
+// A live stream of the poses to one destination (docs/streams.md): `KIND:HOST:PORT[@RATE]`.
+enum class StreamKind { Vmc, VrChat, Caphub };
+
+struct StreamConfig {
+    StreamKind kind = StreamKind::Vmc;
+    std::string host;  // a name or an address (IPv4, or IPv6 in brackets)
+    int port = 0;
+    double rateHz = 60;  // the most datagrams (frames) per second
+};
+
 struct OutputsConfig {
     std::string recordings = "recordings";  // folder for .cap files
     std::string previewPng;                 // folder for PNG frames, empty: off
     std::string mjpeg;                      // host:port of the MJPEG stream, empty: off
+    std::vector<StreamConfig> streams;      // live streams, none by default
 };
 
 // How the hub runs its capture threads (bus workers and the pipeline that publishes poses).

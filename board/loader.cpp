@@ -11,6 +11,7 @@
 #include <fmt/ranges.h>
 #include <toml++/toml.h>
 
+#include "board/stream_spec.h"
 #include "hal/core/error.h"
 #include "hal/core/input_file.h"
 
@@ -856,7 +857,7 @@ void Parser::parseOutputs(const toml::table& root) {
     if (t == nullptr) {
         return;
     }
-    rejectUnknownKeys(*t, "outputs", {"recordings", "preview_png", "mjpeg"});
+    rejectUnknownKeys(*t, "outputs", {"recordings", "preview_png", "mjpeg", "streams"});
     if (auto v = getString(*t, "recordings", "outputs", false, "a folder for recordings")) {
         board_.outputs.recordings = *v;
     }
@@ -874,6 +875,32 @@ void Parser::parseOutputs(const toml::table& root) {
                   fmt::format("'{}' is not host:port (e.g. \"127.0.0.1:8080\")", *v));
         } else {
             board_.outputs.mjpeg = *v;
+        }
+    }
+    if (const toml::node* n = t->get("streams")) {
+        const toml::array* a = n->as_array();
+        if (a == nullptr) {
+            error(n->source(), "outputs.streams",
+                  fmt::format("expected an array of \"KIND:HOST:PORT[@RATE]\" strings, found {}",
+                              typeName(*n)));
+            return;
+        }
+        for (std::size_t i = 0; i < a->size(); ++i) {
+            const toml::node& e = *a->get(i);
+            if (!e.is_string()) {
+                error(
+                    e.source(), "outputs.streams",
+                    fmt::format("element {}: expected a \"KIND:HOST:PORT[@RATE]\" string, found {}",
+                                i, typeName(e)));
+                continue;
+            }
+            auto spec = parseStreamSpec(e.as_string()->get());
+            if (!spec) {
+                error(e.source(), "outputs.streams",
+                      fmt::format("element {}: {}", i, spec.error().message));
+                continue;
+            }
+            board_.outputs.streams.push_back(*spec);
         }
     }
 }

@@ -15,6 +15,8 @@ program_packages=(
   # Render: OSMesa, PNG, JPEG, HTTP, glTF.
   libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
   nlohmann-json3-dev libstb-dev
+  # Live streams: OSC (VMC, VRChat, caphub's own) with liblo.
+  liblo-dev
 )
 # Besides, for the tests, the cross builds and the packages (`bootstrap.sh`, the default).
 test_packages=(
@@ -27,6 +29,10 @@ test_packages=(
   # .deb packages, and caphub-flash's offline image editing (sfdisk, mtools, debugfs).
   g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user dpkg-dev fakeroot file
   fdisk dosfstools mtools e2fsprogs
+  # Live streams: liblo's oscdump receives them in the stream tests.
+  liblo-tools
+  # The Blender add-on's test: Debian's Blender 3.4 headless; numpy for its glTF importer.
+  blender python3-numpy
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
 )

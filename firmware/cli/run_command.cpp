@@ -8,6 +8,7 @@
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
+#include "board/stream_spec.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/capture_setup.h"
 #include "firmware/cli/commands.h"
@@ -45,7 +46,9 @@ struct RunOptions {
     std::vector<std::string> previews;  // png:DIR, fb:/dev/fbN, http:PORT
     double previewFps = 10;
     bool noPreview = false;
-    std::string statusFile;  // empty: defaultStatusPath()
+    std::string statusFile;            // empty: defaultStatusPath()
+    std::vector<std::string> streams;  // KIND:HOST:PORT[@RATE]; none: the board's outputs
+    bool noStream = false;
 };
 
 // The preview sinks of --preview, or without it the board's outputs.
@@ -143,6 +146,22 @@ int run(const RunOptions& o) {
         fmt::print(stderr, "caphub run: {}: {}\n", b.path.string(), problem);
         return kExitUsage;
     }
+    // The live streams: --stream, or without it the board's outputs.
+    std::vector<board::StreamConfig> streams;
+    if (o.streams.empty()) {
+        if (!o.noStream) {
+            streams = b.outputs.streams;
+        }
+    } else {
+        for (const std::string& spec : o.streams) {
+            auto s = board::parseStreamSpec(spec);
+            if (!s) {
+                fmt::print(stderr, "caphub run: --stream: {}\n", s.error().message);
+                return kExitUsage;
+            }
+            streams.push_back(*s);
+        }
+    }
     const bool sim = setup->sim;
     // From the moment the recording is created, a signal stops the capture cleanly.
     StopSignals signals;
@@ -153,6 +172,7 @@ int run(const RunOptions& o) {
     if (o.realtime >= 0) {
         ho.threads.realtimePriority = o.realtime;
     }
+    ho.streams = streams;
     ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
     fs::path recordingPath;
     if (!o.noRecord) {
@@ -231,6 +251,17 @@ int run(const RunOptions& o) {
         fmt::print("\npreview: {} frames rendered, {} skipped{}", preview->framesRendered(),
                    preview->framesSkipped(), err.empty() ? "" : " - " + err);
     }
+    for (const auto& stream : hub.streams()) {
+        const std::string err = stream->lastError();
+        fmt::print(
+            "\nstream {}: {} frames sent ({} datagrams), {} failed{}; latency data-ready -> sent "
+            "p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms",
+            board::toString(stream->config()), stream->sent(), stream->datagrams(),
+            stream->errors(), err.empty() ? "" : " (last: " + err + ")",
+            toSeconds(stream->latencyPercentile(0.5)) * 1e3,
+            toSeconds(stream->latencyPercentile(0.99)) * 1e3,
+            toSeconds(stream->latencyMax()) * 1e3);
+    }
     fmt::print(
         "\n{} samples in {:.2f} s, {} dropped{}, {} sensor losses; latency data-ready -> "
         "pipeline p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n",
@@ -303,6 +334,10 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--status-file", o->statusFile,
                     "Where to keep the live status for `caphub status` (default: $CAPHUB_STATUS, "
                     "/run/caphub/status.json, or the temporary folder)");
+    cmd->add_option("--stream", o->streams,
+                    "Stream the poses live to KIND:HOST:PORT[@RATE], KIND vmc, vrchat or caphub "
+                    "(repeatable; e.g. vmc:127.0.0.1:39539@60; default: the board's outputs)");
+    cmd->add_flag("--no-stream", o->noStream, "No stream, whatever the board's outputs say");
     cmd->add_flag("--no-preview", o->noPreview, "No preview, whatever the board's outputs say");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
         ->check(CLI::PositiveNumber)

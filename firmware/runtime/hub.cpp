@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "firmware/runtime/thread_policy.h"
 #include "hal/core/log.h"
 
 namespace caphub::firmware {
@@ -71,25 +72,53 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
             capture_.addStage(*preview_);
         }
     }
+    // The streams' threads run two levels below the bus workers (one below the pipeline): a
+    // send never delays a sample or a pose, and normal work never delays a send.
+    const ThreadPolicy streamPolicy = options_.threads.lowered(2);
+    for (const board::StreamConfig& config : options_.streams) {
+        streams_.push_back(std::make_unique<PoseStream>(config, poses_, clock_, [streamPolicy] {
+            (void)applyToThisThread(streamPolicy, "caphub-stream");
+        }));
+    }
 }
 
 Hub::~Hub() {
     capture_.requestStop();
     (void)capture_.wait();
+    stopStreams();
+}
+
+void Hub::startStreams() {
+    const Timestamp now = clock_.now();
+    for (auto& s : streams_) {
+        s->start(now);
+    }
+}
+
+void Hub::stopStreams() {
+    for (auto& s : streams_) {
+        s->stop();
+    }
 }
 
 void Hub::start(Duration duration) {
     started_ = true;
+    startStreams();
     capture_.start(duration);
 }
 
 CaptureStats Hub::wait() {
-    return capture_.wait();
+    CaptureStats stats = capture_.wait();
+    stopStreams();
+    return stats;
 }
 
 CaptureStats Hub::runStepped(Duration duration) {
     started_ = true;
-    return capture_.runStepped(duration);
+    startStreams();
+    CaptureStats stats = capture_.runStepped(duration);
+    stopStreams();
+    return stats;
 }
 
 Result<void> Hub::onPipeline(const char* what, std::function<void(Timestamp)> fn) {

@@ -23,6 +23,7 @@
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
 #include "firmware/runtime/status_stage.h"
+#include "firmware/stream/pose_stream.h"
 #include "hal/core/error.h"
 
 namespace caphub::firmware {
@@ -50,6 +51,9 @@ struct HubOptions {
     // every pose on the pipeline thread (an evaluation scoring each pose against the truth,
     // from a queue of the pose feed that it empties on each sample). Not owned.
     std::vector<PipelineStage*> stages;
+    // Live streams of the poses (docs/streams.md): each its own thread, started with the
+    // capture and stopped at its end.
+    std::vector<board::StreamConfig> streams;
     // Threaded (a capture in real time) or stepped (the virtual suit on a stepped clock:
     // deterministic, as fast as the machine allows; run with runStepped()).
     Capture::Mode mode = Capture::Mode::Threaded;
@@ -120,6 +124,8 @@ public:
     RecorderStage& recorder() { return recorder_; }
     StatusStage* status() { return status_.get(); }
     PreviewStage* preview() { return preview_.get(); }
+    // The live streams, in the order configured: their counters and latency (after wait()).
+    const std::vector<std::unique_ptr<PoseStream>>& streams() const { return streams_; }
     // Why the preview is off although sinks were given (empty: it is on, or none was asked).
     const std::string& previewError() const { return previewError_; }
 
@@ -128,6 +134,8 @@ private:
     // or did not get to it in time.
     Result<void> onPipeline(const char* what, std::function<void(Timestamp)> fn);
     std::string metadata() const;
+    void startStreams();
+    void stopStreams();
 
     const board::Board& board_;
     Clock& clock_;
@@ -140,6 +148,7 @@ private:
     std::unique_ptr<StatusStage> status_;
     std::unique_ptr<PreviewStage> preview_;
     std::string previewError_;
+    std::vector<std::unique_ptr<PoseStream>> streams_;
     std::mutex commandMutex_;       // one command at a time
     std::optional<TakeInfo> take_;  // guarded by commandMutex_
     std::uint64_t takes_ = 0;

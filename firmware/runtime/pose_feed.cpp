@@ -11,6 +11,14 @@ void PoseFeed::publish(const PoseFrame& pose) {
         q->push(pose);
     }
     published_.store(pose.serial, std::memory_order_release);
+    // A futex wake only when a consumer waits: never a wait here.
+    changes_.fetch_add(1, std::memory_order_acq_rel);
+    changes_.notify_all();
+}
+
+void PoseFeed::wake() {
+    changes_.fetch_add(1, std::memory_order_acq_rel);
+    changes_.notify_all();
 }
 
 std::uint64_t PoseFeed::latest(PoseFrame& out) const {

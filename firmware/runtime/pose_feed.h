@@ -79,6 +79,15 @@ public:
     std::uint64_t latest(PoseFrame& out) const;
     std::uint64_t published() const { return published_.load(std::memory_order_acquire); }
 
+    // Waiting for the next pose without polling (a stream that sends each pose as it comes): a
+    // count that changes with every pose published and every wake(). A consumer reads it, then
+    // checks what it waits for (a newer pose, its own stop), then waits for the count to move
+    // on from what it read: nothing published or woken in between is missed.
+    std::uint32_t changes() const { return changes_.load(std::memory_order_acquire); }
+    void waitForChange(std::uint32_t seen) const { changes_.wait(seen, std::memory_order_acquire); }
+    // Any thread: wakes every consumer waiting (one that is asked to stop).
+    void wake();
+
     // A queue that gets every pose published from now on, until unsubscribed.
     std::shared_ptr<PoseQueue> subscribe();
     void unsubscribe(const std::shared_ptr<PoseQueue>& queue);
@@ -88,6 +97,7 @@ private:
 
     LatestValue<PoseFrame> latest_;
     std::atomic<std::uint64_t> published_{0};
+    std::atomic<std::uint32_t> changes_{0};
     // Copy on write: the pipeline takes the current list without a lock that a subscriber could
     // hold for long (an atomic shared_ptr), subscribers replace it under their own mutex.
     std::atomic<std::shared_ptr<const Queues>> queues_{std::make_shared<const Queues>()};
