@@ -42,6 +42,7 @@ int runCli(int argc, char** argv) {
     addStatusCommand(app, exitCode);
     addExportCommand(app, exitCode);
     addEvaluateCommand(app, exitCode);
+    addServeCommand(app, exitCode);
 
     try {
         app.parse(argc, argv);
