@@ -134,7 +134,8 @@ function showState(s) {
   $('recording').textContent = s.export ? `exporting ${s.export.take} (${s.export.format}): ${s.export.stage} ${Math.round(100 * s.export.fraction)} %` : '';
 
   const b = s.body;
-  let text = b.calibrated ? `calibrated (${b.calibration})` : 'not calibrated: nominal mountings';
+  let text = b.calibrated && b.calibration !== 'none' ? `calibrated (${b.calibration})`
+    : (b.calibrated || b.calibration === 'not calibrated' ? 'not calibrated: nominal mountings' : b.calibration);
   const req = b.request;
   const cd = b.countdown || {};
   if (req.state === 'averaging' || req.state === 'not started') {

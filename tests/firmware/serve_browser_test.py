@@ -88,6 +88,7 @@ def main():
     try:
         from selenium import webdriver
         from selenium.webdriver.common.by import By
+        from selenium.webdriver.chrome.service import Service as ChromeService
     except ImportError as e:
         fail(f"python3-selenium is needed ({e}); toolchain/bootstrap.sh installs it")
     for tool in ("/usr/bin/chromium", "/usr/bin/chromedriver"):
@@ -132,7 +133,7 @@ def main():
             "download.default_directory": downloads,
             "download.prompt_for_download": False,
         })
-        driver = webdriver.Chrome(service=webdriver.ChromeService("/usr/bin/chromedriver"),
+        driver = webdriver.Chrome(service=ChromeService("/usr/bin/chromedriver"),
                                   options=options)
         driver.execute_cdp_cmd("Browser.setDownloadBehavior",
                                {"behavior": "allow", "downloadPath": downloads})
