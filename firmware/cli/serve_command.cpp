@@ -194,6 +194,7 @@ int runServe(const ServeOptions& o) {
     wo.stateDir = stateDir;
     wo.webRoot = webRoot;
     wo.version = versionLine();
+    wo.sensorCalibration = so.calibration;
     wo.preview = preview;
     wo.threads = o.threads;
     wo.maxStreams = o.maxStreams;

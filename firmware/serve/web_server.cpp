@@ -185,6 +185,7 @@ struct WebServer::State {
     std::thread listener;
     std::thread stateReader;
     int port = 0;
+    int listenSocket = -1;
     bool passwordRequired = false;
     Sessions sessions;
     std::mutex loginMutex;  // one password check at a time (each costs 64 MiB and ~0.1 s)
@@ -273,6 +274,8 @@ struct WebServer::State {
     Json buildState(const HubState& h) {
         Json doc = Json::parse(statusJson(h.status));
         doc["version"] = options.version;
+        doc["sensor_calibration"] =
+            options.sensorCalibration.empty() ? Json(nullptr) : Json(options.sensorCalibration);
         // Per sensor: gyroscope clipping episodes (saturation), by board sensor.
         for (auto& sensor : doc["sensors"]) {
             const std::string name = sensor["name"].get<std::string>();
@@ -965,8 +968,9 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     };
     s->server.set_read_timeout(s->options.timeoutS, 0);
     s->server.set_write_timeout(s->options.timeoutS, 0);
-    s->server.set_keep_alive_timeout(s->options.keepAliveS);
-    s->server.set_keep_alive_max_count(100);
+    // One request per connection: an idle keep-alive connection holds a worker thread until it
+    // times out, and 24 such clients would leave none for anyone else.
+    s->server.set_keep_alive_max_count(1);
     s->server.set_payload_max_length(s->options.maxBodyBytes);
     s->server.set_exception_handler(
         [](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
@@ -981,9 +985,10 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
         });
     // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, which would let a second server
     // share a taken port silently instead of reporting it.
-    s->server.set_socket_options([](socket_t sock) {
+    s->server.set_socket_options([s](socket_t sock) {
         int yes = 1;
         setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+        s->listenSocket = sock;
     });
     s->routes();
     if (s->options.port == 0) {
@@ -995,6 +1000,11 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
         return Error{EADDRINUSE, fmt::format("cannot listen on {}:{} (port taken or address not "
                                              "local)",
                                              s->options.host, s->options.port)};
+    }
+    // Debian's libcpp-httplib listens with a backlog of 5: 50 clients connecting at once would
+    // have their SYNs dropped and retried a second later. listen() again only raises it.
+    if (s->listenSocket >= 0) {
+        (void)::listen(s->listenSocket, 128);
     }
     s->stateReader = std::thread([s] { s->readStateLoop(); });
     s->listener = std::thread([s] { s->server.listen_after_bind(); });

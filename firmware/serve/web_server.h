@@ -26,13 +26,14 @@ struct WebOptions {
     std::filesystem::path webRoot;   // index.html, app.js, style.css
     std::filesystem::path threeRoot = "/usr/share/javascript/three";  // Debian's libjs-three
     std::string version;
+    std::string sensorCalibration;  // the calibration file applied (empty: none), for the state
     // Bounds: HTTP worker threads; of them at most maxStreams held by streams (events, poses,
-    // MJPEG) at once, so that requests are always served; request bodies; socket timeouts.
+    // MJPEG) at once, so that requests are always served; request bodies; socket timeouts. One
+    // request per connection (no keep-alive: an idle connection would hold a thread).
     int threads = 24;
     int maxStreams = 12;
     std::size_t maxBodyBytes = 16 * 1024;
     int timeoutS = 5;
-    int keepAliveS = 2;
     double stateHz = 4;                              // how often the state is read from the Hub
     double poseHz = 30;                              // poses per second on /api/poses
     std::shared_ptr<render::JpegFrameSlot> preview;  // null: no preview

@@ -117,6 +117,9 @@ function showState(s) {
   const lat = s.latency_ms ? `sample p50 ${fmt(s.latency_ms.p50, 2)} / p99 ${fmt(s.latency_ms.p99, 2)} ms` : '';
   const pl = s.pose_latency_ms ? `; pose p50 ${fmt(s.pose_latency_ms.p50, 2)} / p99 ${fmt(s.pose_latency_ms.p99, 2)} ms` : '';
   $('latency').textContent = lat + pl;
+  $('sensor-calibration').textContent = s.sensor_calibration
+    ? `sensor calibration: ${s.sensor_calibration}`
+    : 'sensor calibration: none (caphub calibrate gyro|accel|mag --file STATE_DIR/calibration.toml, then restart)';
 
   if (s.take) {
     const r = s.recording || {};

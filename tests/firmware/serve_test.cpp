@@ -4,6 +4,11 @@
 // CSRF token -> 401/403 with nothing changed, downloads only from the recordings folder, no
 // network listening without a password, and 50 concurrent clients all served while the capture
 // loses no sample.
+// clang-format off
+// Before <httplib.h>: it includes <resolv.h>, whose `_res` macro breaks Eigen's headers after it.
+#include "firmware/serve/web_server.h"
+// clang-format on
+
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -20,7 +25,6 @@
 #include "board/sim/virtual_suit.h"
 #include "firmware/serve/auth.h"
 #include "firmware/serve/takes.h"
-#include "firmware/serve/web_server.h"
 #include "tests/firmware/cli_run.h"
 
 namespace caphub::firmware::serve {
@@ -157,6 +161,18 @@ TEST(Serve, RunsCalibrationATakeWithAMarkerAndDownloadsItsExportsEndToEnd) {
     ASSERT_TRUE(waitForState(s, [](const Json& j) {
         return j.contains("sensors") && !j["sensors"].empty() && j["sensors"][0]["online"] == true;
     }));
+    // A countdown the page can show: the N-pose in 30 s (then replaced by a T-pose at once).
+    auto later = s.post("/api/calibrate", {{"pose", "npose"}, {"countdown_s", 30}});
+    ASSERT_TRUE(later && later->status == 200) << status(later);
+    Json countdown;
+    ASSERT_TRUE(waitForState(s, [&](const Json& j) {
+        countdown = j["body"]["countdown"];
+        return countdown["kind"] == "npose";
+    }));
+    EXPECT_EQ(countdown["kind"], "npose");
+    EXPECT_TRUE(countdown["t_in_s"].is_null());
+    EXPECT_GT(countdown["n_in_s"].get<double>(), 15.0);  // generous: a loaded machine
+    EXPECT_LE(countdown["n_in_s"].get<double>(), 30.0);
     auto cal = s.post("/api/calibrate", {{"pose", "tpose"}, {"countdown_s", 0}});
     ASSERT_TRUE(cal && cal->status == 200) << status(cal);
     EXPECT_TRUE(waitForState(
