@@ -34,6 +34,8 @@ namespace {
 constexpr const char* kSessionCookie = "caphub_session";
 constexpr const char* kCsrfHeader = "X-CSRF-Token";
 constexpr const char* kBoundary = "caphubframe";
+// An SSE comment: keeps a quiet stream writing, so that a client gone is noticed.
+constexpr std::string_view kIdle = ": idle\n\n";
 
 void reply(httplib::Response& res, int status, const Json& body) {
     res.status = status;
@@ -506,7 +508,7 @@ void WebServer::State::routes() {
                         return false;
                     }
                     if (s->stateSequence == *last) {
-                        return sink.write(": idle\n\n", 9);  // notices a client gone
+                        return sink.write(kIdle.data(), kIdle.size());  // notices a client gone
                     }
                     *last = s->stateSequence;
                     text = "data: " + s->stateJson + "\n\n";
@@ -531,7 +533,7 @@ void WebServer::State::routes() {
                 }
                 PoseFrame p;
                 if (s->hub.poses().latest(p) == 0 || p.serial == *last) {
-                    return sink.write(": idle\n\n", 9);
+                    return sink.write(kIdle.data(), kIdle.size());
                 }
                 *last = p.serial;
                 const std::string text = poseEvent(p);

@@ -45,6 +45,8 @@ struct ServeRig {
     std::unique_ptr<Hub> hub;
     std::unique_ptr<WebServer> web;
 
+    std::shared_ptr<render::JpegFrameSlot> preview = std::make_shared<render::JpegFrameSlot>();
+
     explicit ServeRig(const std::string& name, const std::string& password = {})
         : clock(MonotonicClock().now(), 1.0),
           dir(fs::path(::testing::TempDir()) / ("caphub-serve-" + name)),
@@ -74,6 +76,7 @@ struct ServeRig {
         w.webRoot = CAPHUB_SOURCE_DIR "/firmware/web";
         w.version = "serve-test";
         w.stateHz = 10;
+        w.preview = preview;
         auto started = WebServer::start(*hub, board, w);
         EXPECT_TRUE(started.ok()) << started.error().message;
         if (started) {
@@ -286,6 +289,69 @@ TEST(Serve, LivePosesArriveAsServerSentEventsThatMove) {
     for (std::size_t i = 1; i < serials.size(); ++i) {
         EXPECT_GT(serials[i], serials[i - 1]);
     }
+}
+
+TEST(Serve, TheStateIsPushedAsServerSentEvents) {
+    ServeRig rig("events");
+    Session s(rig.port());
+    std::string stream;
+    int states = 0;
+    (void)s.client.Get("/api/events", s.headers(false), [&](const char* data, std::size_t n) {
+        stream.append(data, n);
+        std::size_t end = 0;
+        while ((end = stream.find("\n\n")) != std::string::npos) {
+            const std::string event = stream.substr(0, end);
+            stream.erase(0, end + 2);
+            EXPECT_EQ(event.find('\0'), std::string::npos);
+            if (event.starts_with("data: ")) {
+                const Json j = Json::parse(event.substr(6));
+                EXPECT_TRUE(j.contains("body") && j.contains("take")) << event;
+                ++states;
+            } else {
+                EXPECT_EQ(event, ": idle");
+            }
+        }
+        return states < 3;
+    });
+    EXPECT_EQ(states, 3);
+}
+
+TEST(Serve, ThePreviewIsServedAsTheLatestJpegAndAsAnMjpegStream) {
+    ServeRig rig("preview");
+    Session s(rig.port());
+    auto none = s.get("/api/preview.jpg");
+    ASSERT_TRUE(none);
+    EXPECT_EQ(none->status, 503);  // no frame yet
+    render::Image image(64, 48);
+    ASSERT_TRUE(rig.preview->publish(image).ok());
+    auto jpg = s.get("/api/preview.jpg");
+    ASSERT_TRUE(jpg && jpg->status == 200);
+    EXPECT_EQ(jpg->get_header_value("Content-Type"), "image/jpeg");
+    ASSERT_GT(jpg->body.size(), 4u);
+    EXPECT_EQ(static_cast<unsigned char>(jpg->body[0]), 0xFF);
+    EXPECT_EQ(static_cast<unsigned char>(jpg->body[1]), 0xD8);  // a JPEG's start of image
+    // The stream: each newly published frame as one part.
+    std::atomic<bool> reading{true};
+    std::thread publisher([&] {
+        for (int i = 0; i < 200 && reading; ++i) {
+            (void)rig.preview->publish(image);
+            std::this_thread::sleep_for(milliseconds(20));
+        }
+    });
+    std::string stream;
+    (void)s.client.Get(
+        "/api/preview.mjpeg", s.headers(false), [&](const char* data, std::size_t n) {
+            stream.append(data, n);
+            std::size_t parts = 0;
+            for (std::size_t at = 0;
+                 (at = stream.find("Content-Type: image/jpeg", at)) != std::string::npos; ++at) {
+                ++parts;
+            }
+            return parts < 3;
+        });
+    reading = false;
+    publisher.join();
+    EXPECT_NE(stream.find("--caphubframe"), std::string::npos);
 }
 
 TEST(Serve, WithoutASessionOrItsCsrfTokenCommandsAreRefusedAndNothingChanges) {
