@@ -901,6 +901,10 @@ void WebServer::State::takeRoutes() {
                 fail(res, 500, fmt::format("cannot delete '{}': {}", name, ec.message()));
                 return;
             }
+            {
+                std::lock_guard lock(s->summaryMutex);
+                s->summaries.erase(name);
+            }
             log::logger(log::Category::Firmware).info("take deleted from the web: {}", name);
             reply(res, 200, Json{{"deleted", name}});
         });
