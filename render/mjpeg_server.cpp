@@ -42,6 +42,44 @@ Result<void> JpegEncoder::encode(const Image& image, int quality, std::vector<st
     return {};
 }
 
+Result<void> JpegFrameSlot::publish(const Image& image) {
+    auto jpeg = std::make_shared<std::vector<std::uint8_t>>();
+    if (auto ok = encoder_.encode(image, quality_, *jpeg); !ok) {
+        return ok;
+    }
+    {
+        std::lock_guard lock(mutex_);
+        jpeg_ = std::move(jpeg);
+        ++sequence_;
+    }
+    cv_.notify_all();
+    return {};
+}
+
+std::shared_ptr<const std::vector<std::uint8_t>> JpegFrameSlot::latest(
+    std::uint64_t* sequence) const {
+    std::lock_guard lock(mutex_);
+    if (sequence != nullptr) {
+        *sequence = sequence_;
+    }
+    return jpeg_;
+}
+
+bool JpegFrameSlot::waitNewer(std::uint64_t sequence, int timeoutMs) const {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::milliseconds(timeoutMs), [&] {
+        return closed_ || sequence_ != sequence;
+    }) && !closed_;
+}
+
+void JpegFrameSlot::close() {
+    {
+        std::lock_guard lock(mutex_);
+        closed_ = true;
+    }
+    cv_.notify_all();
+}
+
 struct MjpegServer::State {
     httplib::Server server;
     std::thread thread;

@@ -2,8 +2,10 @@
 // `ffplay http://hub:8080/stream` shows it. Bound to 127.0.0.1 unless configured otherwise.
 #pragma once
 
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -23,6 +25,30 @@ public:
 
 private:
     void* handle_ = nullptr;
+};
+
+// The latest preview frame as a JPEG, for a server that is not this one (`caphub serve`'s): the
+// renderer publishes, any number of HTTP threads read the newest or wait for the next. Encoding
+// happens once per frame on the publishing thread; readers share the bytes.
+class JpegFrameSlot {
+public:
+    explicit JpegFrameSlot(int quality = 80) : quality_(quality) {}
+    Result<void> publish(const Image& image);
+    // The newest frame (null: none yet) and its sequence number (1, 2, ...).
+    std::shared_ptr<const std::vector<std::uint8_t>> latest(std::uint64_t* sequence) const;
+    // Waits up to `timeoutMs` for a frame newer than `sequence`; false on timeout or close().
+    bool waitNewer(std::uint64_t sequence, int timeoutMs) const;
+    // Wakes every waiter for good (the server is stopping).
+    void close();
+
+private:
+    int quality_;
+    JpegEncoder encoder_;  // the publishing thread's
+    mutable std::mutex mutex_;
+    mutable std::condition_variable cv_;
+    std::shared_ptr<const std::vector<std::uint8_t>> jpeg_;
+    std::uint64_t sequence_ = 0;
+    bool closed_ = false;
 };
 
 struct MjpegOptions {

@@ -54,6 +54,16 @@ private:
     std::unique_ptr<MjpegServer> server_;
 };
 
+class JpegSlotSink final : public FrameSink {
+public:
+    explicit JpegSlotSink(std::shared_ptr<JpegFrameSlot> slot) : slot_(std::move(slot)) {}
+    std::string name() const override { return "the web page's preview"; }
+    Result<void> write(const Image& image, std::uint64_t) override { return slot_->publish(image); }
+
+private:
+    std::shared_ptr<JpegFrameSlot> slot_;
+};
+
 }  // namespace
 
 std::unique_ptr<FrameSink> makePngFolderSink(const std::filesystem::path& folder) {
@@ -66,6 +76,10 @@ std::unique_ptr<FrameSink> makeFramebufferSink(FramebufferSink fb) {
 
 std::unique_ptr<FrameSink> makeMjpegSink(std::unique_ptr<MjpegServer> server) {
     return std::make_unique<MjpegFrameSink>(std::move(server));
+}
+
+std::unique_ptr<FrameSink> makeJpegSlotSink(std::shared_ptr<JpegFrameSlot> slot) {
+    return std::make_unique<JpegSlotSink>(std::move(slot));
 }
 
 void SinkSet::addFailure(const std::string& what, const Error& error) {

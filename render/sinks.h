@@ -26,6 +26,8 @@ public:
 std::unique_ptr<FrameSink> makePngFolderSink(const std::filesystem::path& folder);
 std::unique_ptr<FrameSink> makeFramebufferSink(FramebufferSink fb);
 std::unique_ptr<FrameSink> makeMjpegSink(std::unique_ptr<MjpegServer> server);
+// Into a slot another server reads (`caphub serve`'s /preview.mjpeg).
+std::unique_ptr<FrameSink> makeJpegSlotSink(std::shared_ptr<JpegFrameSlot> slot);
 
 class SinkSet {
 public:

@@ -35,6 +35,9 @@ test_packages=(
   blender python3-numpy
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
+  # caphub serve: password hashing (libsodium), three.js for its page; its browser test drives
+  # Debian's headless Chromium with Selenium.
+  libsodium-dev libjs-three chromium chromium-driver python3-selenium
 )
 
 case "${1:-all}" in

@@ -52,8 +52,9 @@ set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     "${PROJECT_BINARY_DIR}/deb/conffiles" "${PROJECT_BINARY_DIR}/deb/postinst"
     "${PROJECT_BINARY_DIR}/deb/prerm" "${PROJECT_BINARY_DIR}/deb/postrm")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
-# The maintainer scripts call adduser and addgroup.
-set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser")
+# The maintainer scripts call adduser and addgroup; caphub serve's page loads three.js from
+# libjs-three (/usr/share/javascript/three).
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "adduser, libjs-three")
 
 # Dependencies come from the shared libraries the program links. On the host dpkg-shlibdeps
 # finds them through the dpkg database. A cross build's libraries are in the sysroot, which dpkg

@@ -43,6 +43,7 @@ int runCli(int argc, char** argv) {
     addExportCommand(app, exitCode);
     addEvaluateCommand(app, exitCode);
     addImportCommand(app, exitCode);
+    addServeCommand(app, exitCode);
 
     try {
         app.parse(argc, argv);

@@ -8,6 +8,7 @@
 #include "firmware/calibration_file.h"
 #include "firmware/cli/data_dir.h"
 #include "hal/core/log.h"
+#include "render/skin.h"
 
 namespace caphub::firmware {
 
@@ -89,6 +90,23 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
     }
     s.suit.emplace(std::move(*suit));
     return s;
+}
+
+void attachPreview(HubOptions& ho, render::SinkSet sinks, double fps, std::string_view command) {
+    for (const auto& f : sinks.failures()) {
+        fmt::print(stderr, "{}: preview {}\n", command, f);
+    }
+    if (sinks.liveCount() == 0) {
+        return;
+    }
+    auto skin = render::loadDefaultSkin();
+    if (!skin) {
+        fmt::print(stderr, "{}: preview off: {}\n", command, skin.error().message);
+        return;
+    }
+    ho.previewSkin = std::move(*skin);
+    ho.previewSinks = std::move(sinks);
+    ho.preview.fps = fps;
 }
 
 StopSignals::StopSignals() {

@@ -13,6 +13,7 @@
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/hub.h"
 #include "fusion/body/body_calibration.h"
 #include "hal/core/clock.h"
 #include "hal/core/error.h"
@@ -51,6 +52,11 @@ struct CaptureSetup {
 // for the suit that would not open. Warnings (a calibration for a sensor not on the board, no
 // clip found) are logged.
 Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetupOptions& o);
+
+// The preview of a live Hub into these sinks at `fps`: the default skin loaded and both put into
+// the Hub's options. A sink that could not be opened, or a skin that cannot be loaded, is printed
+// ("caphub run: preview ...") and the capture goes on without it.
+void attachPreview(HubOptions& ho, render::SinkSet sinks, double fps, std::string_view command);
 
 // SIGINT and SIGTERM stop the capture cleanly (its recordings complete), also when they come
 // before it started: install before creating what must be closed, arm once the Hub exists.

@@ -1,5 +1,6 @@
 // caphub version and caphub info: what this build is and what it supports.
 #include <algorithm>
+#include <iterator>
 #include <map>
 #include <sstream>
 
@@ -47,13 +48,15 @@ void printInfo() {
     }
 }
 
-// A recording's summary: header, records per type, per sensor counts and rates, events, damage.
-int printRecording(const std::string& path) {
+}  // namespace
+
+Result<RecordingSummary> summarizeRecording(const std::string& path) {
     auto reader = RecordingReader::open(path);
     if (!reader) {
-        fmt::print(stderr, "caphub info: {}\n", reader.error().message);
-        return kExitUsage;
+        return Error{EINVAL, reader.error().message};
     }
+    RecordingSummary summary;
+    std::string& out = summary.text;
     auto& r = **reader;
     std::map<int, std::uint64_t> perType;
     std::map<int, std::uint64_t> perSensor;
@@ -117,13 +120,13 @@ int printRecording(const std::string& path) {
         }
     }
     if (rc < 0) {
-        fmt::print(stderr, "caphub info: reading '{}': {}\n", path, errnoText(rc));
-        return kExitRuntime;
+        return Error{-rc, fmt::format("reading '{}': {}", path, errnoText(rc))};
     }
-    fmt::print("recording {} (format version {})\n", path, r.version());
+    fmt::format_to(std::back_inserter(out), "recording {} (format version {})\n", path,
+                   r.version());
     const double span = first <= last ? toSeconds(last - first) : 0.0;
-    fmt::print("duration {:.3f} s\n", span);
-    fmt::print("\nmetadata:\n");
+    fmt::format_to(std::back_inserter(out), "duration {:.3f} s\n", span);
+    fmt::format_to(std::back_inserter(out), "\nmetadata:\n");
     std::istringstream meta(r.metadata());
     std::string line;
     std::string table;
@@ -136,44 +139,71 @@ int printRecording(const std::string& path) {
             line = fmt::format("text = (the {} file, {} bytes)",
                                table == "[calibration]" ? "calibration" : "board", line.size());
         }
-        fmt::print("  {}\n", line);
+        fmt::format_to(std::back_inserter(out), "  {}\n", line);
     }
-    fmt::print("\nrecords:\n");
+    fmt::format_to(std::back_inserter(out), "\nrecords:\n");
     for (const auto& [type, n] : perType) {
-        fmt::print("  {:<12} {}\n", cap::typeName(static_cast<cap::RecordType>(type)), n);
+        fmt::format_to(std::back_inserter(out), "  {:<12} {}\n",
+                       cap::typeName(static_cast<cap::RecordType>(type)), n);
     }
     if (!perSensor.empty()) {
-        fmt::print("\n{:<8} {:>9} {:>9}\n", "sensor", "samples", "rate Hz");
+        fmt::format_to(std::back_inserter(out), "\n{:<8} {:>9} {:>9}\n", "sensor", "samples",
+                       "rate Hz");
         for (const auto& [sensor, n] : perSensor) {
             const auto& [a, b] = sensorSpan[sensor];
             const double s = toSeconds(b - a);
-            fmt::print("{:<8} {:>9} {:>9.1f}\n", sensor, n,
-                       s > 0 ? static_cast<double>(n - 1) / s : 0.0);
+            fmt::format_to(std::back_inserter(out), "{:<8} {:>9} {:>9.1f}\n", sensor, n,
+                           s > 0 ? static_cast<double>(n - 1) / s : 0.0);
         }
     }
     if (!events.empty()) {
-        fmt::print("\nevents:\n");
+        fmt::format_to(std::back_inserter(out), "\nevents:\n");
         for (const auto& e : events) {
-            fmt::print("{}\n", e);
+            fmt::format_to(std::back_inserter(out), "{}\n", e);
         }
     }
-    fmt::print("\nsegments not measured (their sensor out; held in the poses): {}",
-               gaps.empty() ? "none\n" : "\n");
+    fmt::format_to(std::back_inserter(out),
+                   "\nsegments not measured (their sensor out; held in the poses): {}",
+                   gaps.empty() ? "none\n" : "\n");
     for (const auto& [j, spans] : gaps) {
         const std::string name =
             j < board::kSegmentCount
                 ? std::string(board::segmentName(static_cast<board::Segment>(j)))
                 : fmt::format("joint {}", j);
         for (const auto& g : spans) {
-            fmt::print("  {:<12} {:10.3f} - {:.3f} s ({} poses)\n", name, toSeconds(g.from - first),
-                       toSeconds(g.to - first), g.poses);
+            fmt::format_to(std::back_inserter(out), "  {:<12} {:10.3f} - {:.3f} s ({} poses)\n",
+                           name, toSeconds(g.from - first), toSeconds(g.to - first), g.poses);
         }
     }
-    fmt::print("\ndamage: {}", r.damage().empty() ? "none" : "");
+    fmt::format_to(std::back_inserter(out), "\ndamage: {}", r.damage().empty() ? "none" : "");
     for (const auto& d : r.damage()) {
-        fmt::print("\n  {} bytes at offset {}: {}", d.bytes, d.offset, d.what);
+        fmt::format_to(std::back_inserter(out), "\n  {} bytes at offset {}: {}", d.bytes, d.offset,
+                       d.what);
     }
-    fmt::print("\ntorn tail: {} bytes\n", r.tornTailBytes());
+    fmt::format_to(std::back_inserter(out), "\ntorn tail: {} bytes\n", r.tornTailBytes());
+    summary.durationS = span;
+    summary.damagedRanges = r.damage().size();
+    summary.tornTailBytes = r.tornTailBytes();
+    for (const auto& [type, n] : perType) {
+        summary.records += n;
+        if (static_cast<cap::RecordType>(type) == cap::RecordType::Marker) {
+            summary.markers = n;
+        } else if (static_cast<cap::RecordType>(type) == cap::RecordType::Pose) {
+            summary.poses = n;
+        }
+    }
+    return summary;
+}
+
+namespace {
+
+int printRecording(const std::string& path) {
+    auto summary = summarizeRecording(path);
+    if (!summary) {
+        fmt::print(stderr, "caphub info: {}\n", summary.error().message);
+        return summary.error().code == EINVAL ? kExitUsage : kExitRuntime;
+    }
+    fmt::print("{}", summary->text);
     return kExitOk;
 }
 

@@ -201,21 +201,7 @@ int run(const RunOptions& o) {
         }
         ho.recordFromStart = std::move(*writer);
     }
-    if (auto sinks = previewSinks(o, b); sinks.liveCount() > 0 || !sinks.failures().empty()) {
-        for (const auto& f : sinks.failures()) {
-            fmt::print(stderr, "caphub run: preview {}\n", f);
-        }
-        if (sinks.liveCount() > 0) {
-            auto skin = render::loadDefaultSkin();
-            if (!skin) {
-                fmt::print(stderr, "caphub run: preview off: {}\n", skin.error().message);
-            } else {
-                ho.previewSkin = std::move(*skin);
-                ho.previewSinks = std::move(sinks);
-                ho.preview.fps = o.previewFps;
-            }
-        }
-    }
+    attachPreview(ho, previewSinks(o, b), o.previewFps, "caphub run");
     Hub hub(b, *setup->clock, *setup->suit, std::move(ho));
     if (bodyOptions.calibrate && !sim) {
         fmt::print("stand still in the {} for the first {:.0f} s\n",

@@ -72,6 +72,7 @@ public:
     // the capture clock as the pipeline saw it: percentiles (0..1) over the last 65536 poses
     // (18 min at 60 Hz).
     Duration latencyPercentile(double p) const { return latency_.percentile(p); }
+    const LatencyWindow& latencyWindow() const { return latency_; }
 
 private:
     void record(Timestamp t, const body::TrackerEvents& events);

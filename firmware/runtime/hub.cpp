@@ -287,6 +287,11 @@ HubState Hub::state() {
                                       : std::string("not calibrated"));
         s.poses = body_.poses();
         s.calibrationStatus = body_.tracker().calibrationStatus();
+        s.poseLatency = body_.latencyWindow();
+        s.gyroClipEvents.resize(board_.sensors.size());
+        for (std::size_t i = 0; i < board_.sensors.size(); ++i) {
+            s.gyroClipEvents[i] = fusion_.clipEvents(static_cast<int>(i));
+        }
         if (const RecordingWriter* w = recorder_.current(); w != nullptr && s.take) {
             s.take->records = w->stats().records;
             s.take->error = w->error();

@@ -79,6 +79,10 @@ struct HubState {
     std::string bodyCalibration;                // the method, or why it failed
     body::CalibrationStatus calibrationStatus;  // the latest request and how far it got
     std::uint64_t poses = 0;
+    // The body's latency window (data-ready -> pose written), a copy: percentiles off the pipeline.
+    LatencyWindow poseLatency{1};
+    // Per board sensor: gyroscope clipping episodes so far (saturation).
+    std::vector<std::uint32_t> gyroClipEvents;
 };
 
 class Hub {

@@ -1,0 +1,289 @@
+// caphub serve: the hub running until SIGTERM/SIGINT - sensors, fusion, body, status, preview -
+// operated from a phone or laptop through its web page and HTTP API (firmware/serve,
+// docs/serve.md). `caphub serve --set-password` stores the password that listening beyond this
+// machine needs.
+#include <charconv>
+#include <cstdio>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include "firmware/cli/app.h"
+#include "firmware/cli/capture_setup.h"
+#include "firmware/cli/commands.h"
+#include "firmware/cli/data_dir.h"
+#include "firmware/cli/info.h"
+#include "firmware/cli/preview_sinks.h"
+#include "firmware/runtime/hub.h"
+#include "firmware/serve/auth.h"
+#include "firmware/serve/web_server.h"
+#include "render/sinks.h"
+
+namespace caphub::firmware {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ServeOptions {
+    std::string board = "sim-suit";
+    std::string listen = "127.0.0.1:8080";
+    std::string recordings;  // empty: the board's outputs
+    std::string stateDir;    // empty: defaultStateDir()
+    std::string webRoot;     // empty: serve::defaultWebRoot()
+    bool setPassword = false;
+    double durationS = 0;
+    int realtime = -1;
+    int syncMs = 200;
+    double poseRateHz = 60;
+    double speed = 1.0;
+    std::string bvh;
+    std::string map;
+    std::string profile = "typical";
+    std::uint64_t seed = 1;
+    bool rest = false;
+    std::string calibration;  // empty: STATE_DIR/calibration.toml when it exists
+    std::vector<std::string> previews;
+    double previewFps = 10;
+    bool noPreview = false;
+    std::string statusFile;
+    int threads = 24;
+    int maxStreams = 12;
+};
+
+// $CAPHUB_STATE_DIR; /var/lib/caphub when it is a folder this user may write (the service's);
+// else $XDG_STATE_HOME/caphub or ~/.local/state/caphub.
+fs::path defaultStateDir() {
+    if (const char* env = std::getenv("CAPHUB_STATE_DIR"); env != nullptr && *env != '\0') {
+        return env;
+    }
+    std::error_code ec;
+    if (fs::is_directory("/var/lib/caphub", ec) && ::access("/var/lib/caphub", W_OK) == 0) {
+        return "/var/lib/caphub";
+    }
+    if (const char* xdg = std::getenv("XDG_STATE_HOME"); xdg != nullptr && *xdg != '\0') {
+        return fs::path(xdg) / "caphub";
+    }
+    const char* home = std::getenv("HOME");
+    return fs::path(home != nullptr ? home : ".") / ".local" / "state" / "caphub";
+}
+
+// HOST:PORT, [V6]:PORT or PORT (on 127.0.0.1).
+Result<std::pair<std::string, int>> parseListen(const std::string& text) {
+    std::string host = "127.0.0.1";
+    std::string port = text;
+    if (const auto colon = text.rfind(':'); colon != std::string::npos) {
+        host = text.substr(0, colon);
+        port = text.substr(colon + 1);
+        if (host.size() >= 2 && host.front() == '[' && host.back() == ']') {
+            host = host.substr(1, host.size() - 2);
+        }
+    }
+    int value = -1;
+    const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), value);
+    if (host.empty() || port.empty() || ec != std::errc() || end != port.data() + port.size() ||
+        value < 0 || value > 65535) {
+        return Error{EINVAL,
+                     fmt::format("--listen '{}': expected HOST:PORT with a port 0-65535", text)};
+    }
+    return std::pair{host, value};
+}
+
+int setPasswordFromStdin(const fs::path& stateDir) {
+    if (isatty(STDIN_FILENO) == 1) {
+        fmt::print(stderr, "password (8 characters at least), then Enter: ");
+    }
+    std::string password;
+    std::getline(std::cin, password);
+    if (!password.empty() && password.back() == '\r') {
+        password.pop_back();
+    }
+    auto r = serve::setPassword(stateDir, password);
+    if (!r) {
+        fmt::print(stderr, "caphub serve: {}\n", r.error().message);
+        return r.error().code == EINVAL ? kExitUsage : kExitRuntime;
+    }
+    fmt::print("caphub serve: password stored (hashed) in {}\n",
+               serve::passwordFile(stateDir).string());
+    return kExitOk;
+}
+
+int runServe(const ServeOptions& o) {
+    const fs::path stateDir = o.stateDir.empty() ? defaultStateDir() : fs::path(o.stateDir);
+    if (o.setPassword) {
+        return setPasswordFromStdin(stateDir);
+    }
+    const auto listen = parseListen(o.listen);
+    if (!listen) {
+        fmt::print(stderr, "caphub serve: {}\n", listen.error().message);
+        return kExitUsage;
+    }
+    const auto& [host, port] = *listen;
+    if (!serve::isLoopbackHost(host) && !serve::hasPassword(stateDir)) {
+        fmt::print(stderr,
+                   "caphub serve: listening on {} (beyond this machine) needs a password; set one "
+                   "first: caphub serve --set-password --state-dir {}\n",
+                   host, stateDir.string());
+        return kExitUsage;
+    }
+    const fs::path webRoot = o.webRoot.empty() ? serve::defaultWebRoot() : fs::path(o.webRoot);
+    if (webRoot.empty()) {
+        fmt::print(stderr,
+                   "caphub serve: the web page's files are not found (set "
+                   "CAPHUB_WEB_DIR or --web-root); the API works without them\n");
+    }
+    const auto loaded = loadCommandBoard(o.board);
+    if (!loaded) {
+        return kExitUsage;
+    }
+    const board::Board& b = *loaded;
+    CaptureSetupOptions so;
+    so.bvh = o.bvh;
+    so.map = o.map;
+    so.profile = o.profile;
+    so.seed = o.seed;
+    so.rest = o.rest;
+    so.speed = o.speed;
+    so.calibration = o.calibration;
+    if (so.calibration.empty()) {
+        // The sensor calibration kept on the hub is applied at every start.
+        std::error_code ec;
+        if (const fs::path kept = stateDir / "calibration.toml"; fs::is_regular_file(kept, ec)) {
+            so.calibration = kept.string();
+        }
+    }
+    auto setup = buildCaptureSetup(b, so);
+    if (!setup) {
+        fmt::print(stderr, "caphub serve: {}\n", setup.error().message);
+        return setup.error().code == EINVAL ? kExitUsage : kExitRuntime;
+    }
+    StopSignals signals;
+    HubOptions ho;
+    ho.calibrations = setup->calibrations;
+    ho.body.rateHz = o.poseRateHz;
+    ho.threads = ThreadPolicy::fromBoard(b.runtime);
+    if (o.realtime >= 0) {
+        ho.threads.realtimePriority = o.realtime;
+    }
+    ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    ho.recordings = o.recordings.empty() ? fs::path(b.outputs.recordings) : fs::path(o.recordings);
+    ho.boardText = setup->boardText;
+    ho.softwareVersion = versionLine();
+    ho.calibrationPath = so.calibration;
+    ho.calibrationText = setup->calibrationText;
+    ho.writer.syncInterval = std::chrono::milliseconds(o.syncMs);
+    std::shared_ptr<render::JpegFrameSlot> preview;
+    if (!o.noPreview) {
+        render::SinkSet sinks = openPreviewSinks(o.previews);
+        preview = std::make_shared<render::JpegFrameSlot>();
+        sinks.add(render::makeJpegSlotSink(preview));
+        attachPreview(ho, std::move(sinks), o.previewFps, "caphub serve");
+        if (!ho.previewSkin) {
+            preview.reset();
+        }
+    }
+    Hub hub(b, *setup->clock, *setup->suit, std::move(ho));
+    signals.arm(hub.capture());
+    hub.start(durationFromSeconds(o.durationS));
+
+    serve::WebOptions wo;
+    wo.host = host;
+    wo.port = port;
+    wo.recordings = o.recordings.empty() ? fs::path(b.outputs.recordings) : fs::path(o.recordings);
+    wo.stateDir = stateDir;
+    wo.webRoot = webRoot;
+    wo.version = versionLine();
+    wo.sensorCalibration = so.calibration;
+    wo.preview = preview;
+    wo.threads = o.threads;
+    wo.maxStreams = o.maxStreams;
+    auto web = serve::WebServer::start(hub, b, wo);
+    if (!web) {
+        fmt::print(stderr, "caphub serve: {}\n", web.error().message);
+        hub.requestStop();
+        (void)hub.wait();
+        return web.error().code == EADDRINUSE ? kExitRuntime : kExitUsage;
+    }
+    const std::string shownHost = host.find(':') != std::string::npos ? "[" + host + "]" : host;
+    fmt::print(
+        "caphub serve: http://{}:{}/ - {} sensors on '{}' ({}); takes in {}; state in {}{}\n",
+        shownHost, (*web)->port(), b.sensors.size(), b.name,
+        setup->sim ? "virtual suit, motion " + setup->motionText : "hub buses",
+        wo.recordings.string(), stateDir.string(),
+        serve::hasPassword(stateDir) ? "; password set" : "; no password (this machine only)");
+    std::fflush(stdout);
+
+    const CaptureStats stats = hub.wait();
+    (*web)->stop();
+    fmt::print(
+        "caphub serve: stopped; {} samples in {:.2f} s, {} dropped, {} sensor losses; "
+        "{} poses, latency data-ready -> pose written p50 {:.3f} ms, p99 {:.3f} ms\n",
+        stats.samples, toSeconds(stats.elapsed), stats.dropped, stats.lost, hub.body().poses(),
+        toSeconds(hub.body().latencyPercentile(0.5)) * 1e3,
+        toSeconds(hub.body().latencyPercentile(0.99)) * 1e3);
+    return kExitOk;
+}
+
+}  // namespace
+
+void addServeCommand(CLI::App& app, int& exitCode) {
+    auto o = std::make_shared<ServeOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "serve",
+        "Run the hub until stopped, operated from a web page and HTTP API (docs/serve.md)");
+    cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+        ->capture_default_str();
+    cmd->add_option("--listen", o->listen,
+                    "HOST:PORT to serve on; beyond 127.0.0.1 a password must be set first")
+        ->capture_default_str();
+    cmd->add_option("--recordings", o->recordings,
+                    "Folder of the takes (default: the board's outputs)");
+    cmd->add_option("--state-dir", o->stateDir,
+                    "The hub's state: password hash, calibration.toml (default: "
+                    "$CAPHUB_STATE_DIR, /var/lib/caphub, ~/.local/state/caphub)");
+    cmd->add_option("--web-root", o->webRoot, "The web page's files (default: the installed ones)");
+    cmd->add_flag("--set-password", o->setPassword,
+                  "Read a password from stdin, store its hash in the state folder, and exit");
+    cmd->add_option("-d,--duration", o->durationS, "Seconds to run (0: until SIGTERM or Ctrl-C)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    cmd->add_option("--realtime", o->realtime, "SCHED_FIFO priority of the capture threads, 0-99")
+        ->check(CLI::Range(0, 99));
+    cmd->add_option("--sync-ms", o->syncMs, "fdatasync interval of a take, ms")
+        ->check(CLI::Range(10, 10000))
+        ->capture_default_str();
+    cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--speed", o->speed, "Virtual suit only: simulated seconds per real second")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_option("--bvh", o->bvh, "Virtual suit: the motion (BVH)");
+    cmd->add_option("--map", o->map, "Virtual suit: joint-name map (TOML) for the BVH file");
+    cmd->add_option("--profile", o->profile, "Virtual suit: sensor errors: ideal, typical, harsh")
+        ->capture_default_str();
+    cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
+        ->capture_default_str();
+    cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
+    cmd->add_option("--calibration", o->calibration,
+                    "Sensor calibration file (default: calibration.toml in the state folder, "
+                    "when there is one)");
+    cmd->add_option("--preview", o->previews,
+                    "More preview outputs: png:DIR, fb:/dev/fbN, http:[HOST:]PORT (repeatable)");
+    cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd->add_flag("--no-preview", o->noPreview, "No preview (the page's 3D view still works)");
+    cmd->add_option("--status-file", o->statusFile, "Where to keep the live status");
+    cmd->add_option("--http-threads", o->threads, "HTTP worker threads")
+        ->check(CLI::Range(4, 256))
+        ->capture_default_str();
+    cmd->add_option("--max-streams", o->maxStreams,
+                    "Live streams (events, poses, MJPEG) served at once; the rest get 503")
+        ->check(CLI::Range(1, 254))
+        ->capture_default_str();
+    cmd->callback([&exitCode, o] { exitCode = runServe(*o); });
+}
+
+}  // namespace caphub::firmware
