@@ -313,7 +313,7 @@ const view = {
       this.canvas.width = w;
       this.canvas.height = h;
     }
-    if (this.last) this.pose(this.last);
+    if (this.last) this.draw(this.last);
   },
   // End site of bone b in the world: its segment's centre plus the offset turned by its rotation.
   endPoint(p, e) {
@@ -325,8 +325,20 @@ const view = {
     const c = p.p[e.segment];
     return [c[0] + vx + 2 * (w * cx + ex), c[1] + vy + 2 * (w * cy + ey), c[2] + vz + 2 * (w * cz + ez)];
   },
+  // A pose from the stream: drawn at the browser's next frame, the newest one if several came
+  // in between, so that a slow device (software WebGL, a phone) draws what it can and stays
+  // responsive instead of queueing a draw per pose.
   pose(p) {
     this.last = p;
+    if (!this.frameRequested) {
+      this.frameRequested = true;
+      requestAnimationFrame(() => {
+        this.frameRequested = false;
+        this.draw(this.last);
+      });
+    }
+  },
+  draw(p) {
     this.poses += 1;
     this.el.dataset.poses = String(this.poses);
     $('pose-info').textContent = `pose ${p.serial}${p.calibrated ? '' : ' (nominal mountings)'}`;

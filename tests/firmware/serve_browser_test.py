@@ -79,6 +79,21 @@ return n;
 """
 
 
+def patient(what, fn, attempts=4):
+    """Runs a browser command again when ChromeDriver gave up waiting for a renderer busy drawing
+    (SwiftShader on a loaded two-core machine can take more than its fixed 10 s): waiting
+    longer, not asserting anything about speed."""
+    from selenium.common.exceptions import TimeoutException
+    for i in range(attempts):
+        try:
+            return fn()
+        except TimeoutException as e:
+            print(f"{what}: the browser did not answer in time ({str(e).splitlines()[0]}); "
+                  f"again ({i + 1} of {attempts})", flush=True)
+            time.sleep(2)
+    fail(f"{what}: the browser did not answer after {attempts} attempts")
+
+
 def main():
     if len(sys.argv) != 4:
         print(__doc__)
@@ -142,11 +157,11 @@ def main():
         wait_for("poses in the 3D view", lambda: int(view.get_attribute("data-poses")) >= 10)
         renderer = view.get_attribute("data-renderer")
         drawn1 = driver.execute_script(COUNT_DRAWN)
-        shot1 = view.screenshot_as_png
+        shot1 = patient("the first screenshot", lambda: view.screenshot_as_png)
         seen = int(view.get_attribute("data-poses"))
         wait_for("more poses", lambda: int(view.get_attribute("data-poses")) >= seen + 20)
         drawn2 = driver.execute_script(COUNT_DRAWN)
-        shot2 = view.screenshot_as_png
+        shot2 = patient("the second screenshot", lambda: view.screenshot_as_png)
         with open(os.path.join(out_dir, "view-1.png"), "wb") as f:
             f.write(shot1)
         with open(os.path.join(out_dir, "view-2.png"), "wb") as f:
