@@ -49,6 +49,9 @@ cap = os.path.join(WORK, "blender.cap")
 if os.path.exists(cap):
     os.remove(cap)
 cmd = [CAPHUB, "run", "--board", "sim-suit", "--duration", "5", "--realtime", "0",
+       # Ideal chips: with the typical ones and no sensor calibration the magnetometers' hard
+       # iron turns the headings and the avatar looks broken (issue 23); the stream is the same.
+       "--profile", "ideal",
        "--no-preview", "--record", cap, "--status-file", os.path.join(WORK, "status.json"),
        "--stream", f"caphub:127.0.0.1:{rx.port}@60"]
 print("$", " ".join(cmd))
