@@ -28,6 +28,20 @@ extern "C" void onStopSignal(int) {
 
 }  // namespace
 
+void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o) {
+    cmd.add_option("--speed", o.speed, "Virtual suit only: simulated seconds per real second")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    cmd.add_option("--bvh", o.bvh,
+                   "Virtual suit: the motion (BVH); default: the shipped walking clip");
+    cmd.add_option("--map", o.map, "Virtual suit: joint-name map (TOML) for the BVH file");
+    cmd.add_option("--profile", o.profile, "Virtual suit: sensor errors: ideal, typical, harsh")
+        ->capture_default_str();
+    cmd.add_option("--seed", o.seed, "Virtual suit: seed of the sensor errors")
+        ->capture_default_str();
+    cmd.add_flag("--rest", o.rest, "Virtual suit: stand still instead of playing a clip");
+}
+
 Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetupOptions& o) {
     CaptureSetup s;
     s.sim = board::allBusesSimulated(b);

@@ -8,6 +8,8 @@
 #include <optional>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "board/board.h"
 #include "board/hardware.h"
 #include "board/sim/virtual_suit.h"
@@ -47,6 +49,10 @@ struct CaptureSetup {
     std::string calibrationText;  // the calibration file, as recorded in the metadata
     std::string boardText;        // the board file, as recorded in the metadata
 };
+
+// The virtual suit's options of a live command (--speed, --bvh, --map, --profile, --seed,
+// --rest) into o.
+void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o);
 
 // Errors: EINVAL for what the user gave (a profile, a clip, a calibration file), anything else
 // for the suit that would not open. Warnings (a calibration for a sensor not on the board, no

@@ -33,13 +33,10 @@ struct RunOptions {
     std::string record;  // the recording's path; empty: a timestamped name in `out`
     int realtime = -1;   // SCHED_FIFO priority of the capture threads; -1: the board's
     int syncMs = 200;    // the recording's durability interval
-    double speed = 1.0;
     bool noRecord = false;
-    std::string bvh;  // virtual suit: the motion; default: the shipped walking clip
-    std::string map;
-    std::string profile = "typical";
-    std::uint64_t seed = 1;
-    bool rest = false;
+    // The virtual suit (its motion, sensor errors, pace); the rest of it is filled in at the
+    // start.
+    CaptureSetupOptions suit;
     std::string calibration;
     std::string bodyCalibration = "none";  // tpose, npose, none
     double poseRateHz = 60;
@@ -126,13 +123,7 @@ int run(const RunOptions& o) {
     }
     // The pose is held from the start until the orientations have been averaged, plus a margin.
     const double holdS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
-    CaptureSetupOptions so;
-    so.bvh = o.bvh;
-    so.map = o.map;
-    so.profile = o.profile;
-    so.seed = o.seed;
-    so.rest = o.rest;
-    so.speed = o.speed;
+    CaptureSetupOptions so = o.suit;
     so.leadInPose = bodyOptions.calibrate;
     so.holdS = holdS;
     so.calibration = o.calibration;
@@ -295,18 +286,8 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "SCHED_FIFO priority of the capture threads, 1-99 (0: normal scheduling; "
                     "default: the board's [runtime])")
         ->check(CLI::Range(0, 99));
-    cmd->add_option("--speed", o->speed, "Virtual suit only: simulated seconds per real second")
-        ->check(CLI::PositiveNumber)
-        ->capture_default_str();
+    addVirtualSuitOptions(*cmd, o->suit);
     cmd->add_flag("--no-record", o->noRecord, "Do not write a recording")->excludes(record);
-    cmd->add_option("--bvh", o->bvh,
-                    "Virtual suit: the motion (BVH); default: the shipped walking clip");
-    cmd->add_option("--map", o->map, "Virtual suit: joint-name map (TOML) for the BVH file");
-    cmd->add_option("--profile", o->profile, "Virtual suit: sensor errors: ideal, typical, harsh")
-        ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
-        ->capture_default_str();
-    cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
     cmd->add_option("--calibrate", o->bodyCalibration,
                     "Body calibration at the start: tpose, npose (the subject holds the pose "
                     "for the first seconds) or none (the board's nominal mountings)")

@@ -37,12 +37,9 @@ struct ServeOptions {
     int realtime = -1;
     int syncMs = 200;
     double poseRateHz = 60;
-    double speed = 1.0;
-    std::string bvh;
-    std::string map;
-    std::string profile = "typical";
-    std::uint64_t seed = 1;
-    bool rest = false;
+    // The virtual suit (its motion, sensor errors, pace); the rest of it is filled in at the
+    // start.
+    CaptureSetupOptions suit;
     std::string calibration;  // empty: STATE_DIR/calibration.toml when it exists
     std::vector<std::string> previews;
     double previewFps = 10;
@@ -138,13 +135,7 @@ int runServe(const ServeOptions& o) {
         return kExitUsage;
     }
     const board::Board& b = *loaded;
-    CaptureSetupOptions so;
-    so.bvh = o.bvh;
-    so.map = o.map;
-    so.profile = o.profile;
-    so.seed = o.seed;
-    so.rest = o.rest;
-    so.speed = o.speed;
+    CaptureSetupOptions so = o.suit;
     so.calibration = o.calibration;
     if (so.calibration.empty()) {
         // The sensor calibration kept on the hub is applied at every start.
@@ -256,16 +247,7 @@ void addServeCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
-    cmd->add_option("--speed", o->speed, "Virtual suit only: simulated seconds per real second")
-        ->check(CLI::PositiveNumber)
-        ->capture_default_str();
-    cmd->add_option("--bvh", o->bvh, "Virtual suit: the motion (BVH)");
-    cmd->add_option("--map", o->map, "Virtual suit: joint-name map (TOML) for the BVH file");
-    cmd->add_option("--profile", o->profile, "Virtual suit: sensor errors: ideal, typical, harsh")
-        ->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Virtual suit: seed of the sensor errors")
-        ->capture_default_str();
-    cmd->add_flag("--rest", o->rest, "Virtual suit: stand still instead of playing a clip");
+    addVirtualSuitOptions(*cmd, o->suit);
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (default: calibration.toml in the state folder, "
                     "when there is one)");

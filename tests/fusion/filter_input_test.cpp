@@ -5,7 +5,6 @@
 #include <cmath>
 #include <limits>
 #include <optional>
-
 #include <type_traits>
 
 #include <gtest/gtest.h>
