@@ -25,10 +25,8 @@ std::uint64_t PoseFeed::latest(PoseFrame& out) const {
     if (published_.load(std::memory_order_acquire) == 0) {
         return 0;
     }
-    PoseFrame p;
-    latest_.read(p);
-    out = p;
-    return p.serial;
+    latest_.read(out);
+    return out.serial;
 }
 
 std::shared_ptr<PoseQueue> PoseFeed::subscribe() {
