@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include <fmt/format.h>
+#include <sys/resource.h>
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
@@ -73,6 +74,27 @@ std::string timestampName() {
 
 // The body's figures: the calibration and, on the virtual suit, how far its mountings are from
 // the sensors' true (strapped) ones; the poses and their latency.
+// Where the CPU went: the capture's own threads, and the whole process (the preview's
+// rendering, the recorder's disk writes, the streams, and the setup before the capture).
+void printCpu(const CaptureStats& stats) {
+    const double seconds = toSeconds(stats.elapsed);
+    rusage usage{};
+    if (seconds <= 0 || stats.pipelineCpu.count() == 0 || ::getrusage(RUSAGE_SELF, &usage) != 0) {
+        return;  // stepped, or nothing measured
+    }
+    const auto cpuS = [](const timeval& tv) {
+        return static_cast<double>(tv.tv_sec) + static_cast<double>(tv.tv_usec) * 1e-6;
+    };
+    const double pipeline = toSeconds(stats.pipelineCpu);
+    const double workers = toSeconds(stats.busWorkersCpu);
+    const double process = cpuS(usage.ru_utime) + cpuS(usage.ru_stime);
+    fmt::print(
+        "cpu: pipeline {:.2f} s ({:.1f} % of one core), bus workers {:.2f} s ({:.1f} %), whole "
+        "process {:.2f} s ({:.1f} %)\n",
+        pipeline, 100 * pipeline / seconds, workers, 100 * workers / seconds, process,
+        100 * process / seconds);
+}
+
 void printBody(const BodyStage& body, const board::Board& b,
                const std::function<board::sim::SensorPlacement(const board::SensorConfig&, int)>&
                    placementOf) {
@@ -249,6 +271,7 @@ int run(const RunOptions& o) {
             : std::string(),
         stats.lost, toSeconds(stats.latencyP50) * 1e3, toSeconds(stats.latencyP99) * 1e3,
         toSeconds(stats.latencyMax) * 1e3);
+    printCpu(stats);
     if (const RecordingWriter* w = hub.recorder().current(); w != nullptr) {
         std::error_code ec;
         const auto size = fs::file_size(recordingPath, ec);

@@ -143,6 +143,7 @@ void BusWorker::start(const ThreadPolicy& policy) {
         while (running_.load(std::memory_order_relaxed)) {
             runOnce();
         }
+        cpuNs_.store(thisThreadCpuTime().count(), std::memory_order_relaxed);
     });
 }
 

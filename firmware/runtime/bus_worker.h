@@ -79,6 +79,8 @@ public:
     // an interrupted clock's sleeps while another is being joined - with SCHED_FIFO workers on
     // a two-core board, two such spinners would keep the joined one from ever running.
     void requestStop() { running_.store(false, std::memory_order_relaxed); }
+    // The CPU time its thread used, once stopped (0 before, or when run by a stepped capture).
+    Duration cpuTime() const { return Duration{cpuNs_.load(std::memory_order_relaxed)}; }
 
     SampleRing& samples() { return samples_; }
     EventRing& events() { return events_; }
@@ -109,6 +111,7 @@ private:
     WakeSignal* wake_ = nullptr;
     bool produced_ = false;  // this pass pushed a sample or an event
     std::atomic<bool> running_{false};
+    std::atomic<std::int64_t> cpuNs_{0};
     std::thread thread_;
 };
 

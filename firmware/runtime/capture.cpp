@@ -44,6 +44,7 @@ void Capture::start(Duration duration) {
     thread_ = std::thread([this, endAt] {
         (void)applyToThisThread(threadPolicy_.lowered(1), "caphub-pipeline");
         pipelineLoop(endAt);
+        stats_.pipelineCpu = thisThreadCpuTime();
     });
 }
 
@@ -143,6 +144,7 @@ void Capture::end(Timestamp now) {
             stats_.dropped += w->counters(i).dropped.load();
             stats_.lost += w->counters(i).lost.load();
         }
+        stats_.busWorkersCpu += w->cpuTime();
     }
     stats_.latencyP50 = latency_.percentile(0.5);
     stats_.latencyP99 = latency_.percentile(0.99);

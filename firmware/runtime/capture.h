@@ -35,6 +35,11 @@ struct CaptureStats {
     Duration latencyP50{};
     Duration latencyP99{};
     Duration latencyMax{};
+    // CPU time (user and system) of the threaded capture's own threads: the pipeline (every
+    // stage on it) and the bus workers together (on the virtual suit they also run the motion,
+    // the IMU model and the chips' models). Zero in stepped mode.
+    Duration pipelineCpu{};
+    Duration busWorkersCpu{};
 };
 
 class Capture {

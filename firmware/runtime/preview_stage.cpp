@@ -1,5 +1,6 @@
 #include "firmware/runtime/preview_stage.h"
 
+#include "firmware/runtime/thread_policy.h"
 #include "hal/core/log.h"
 #include "render/skin_fit.h"
 #include "render/skinning.h"
@@ -107,6 +108,8 @@ std::string PreviewStage::error() const {
 }
 
 void PreviewStage::renderLoop() {
+    // Named, on the normal scheduler: rendering is what the capture threads preempt.
+    (void)applyToThisThread(ThreadPolicy{}, "caphub-preview");
     // The OSMesa context belongs to the thread that makes it current: this one.
     auto renderer = render::Renderer::create(skin_, options_.render);
     if (!renderer) {

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "board/bus_budget.h"
+#include "firmware/runtime/thread_policy.h"
 #include "hal/core/log.h"
 
 namespace caphub::firmware {
@@ -38,7 +39,10 @@ StatusStage::StatusStage(const board::Board& board, const Capture& capture,
     for (const auto& load : board::computeBusLoads(board)) {
         plannedLoad_.push_back(load.utilisation);
     }
-    writer_ = std::thread([this] { writerLoop(); });
+    writer_ = std::thread([this] {
+        (void)applyToThisThread(ThreadPolicy{}, "caphub-status");
+        writerLoop();
+    });
 }
 
 StatusStage::~StatusStage() {

@@ -7,6 +7,7 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <time.h>
 
 #include "hal/core/log.h"
 
@@ -61,6 +62,14 @@ int applyToThisThread(const ThreadPolicy& policy, const char* name) {
         }
     }
     return result;
+}
+
+Duration thisThreadCpuTime() {
+    timespec ts{};
+    if (::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) {
+        return Duration{0};
+    }
+    return std::chrono::seconds(ts.tv_sec) + std::chrono::nanoseconds(ts.tv_nsec);
 }
 
 }  // namespace caphub::firmware

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "board/board.h"
+#include "hal/core/time.h"
 
 namespace caphub::firmware {
 
@@ -24,5 +25,8 @@ struct ThreadPolicy {
 // -errno of the first setting the kernel refused (-EPERM without CAP_SYS_NICE); the thread then
 // keeps its normal scheduling. The first refusal in the process is logged, once.
 int applyToThisThread(const ThreadPolicy& policy, const char* name);
+
+// The CPU time the calling thread has used so far (user and system).
+Duration thisThreadCpuTime();
 
 }  // namespace caphub::firmware

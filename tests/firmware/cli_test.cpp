@@ -416,6 +416,27 @@ TEST(CliRun, ARealTimeRunOnOneCoreStopsAtItsDuration) {
     EXPECT_NE(r.output.find(" dropped"), std::string::npos) << r.output;
 }
 
+TEST(CliRun, TheReportSaysWhereTheCpuWent) {
+    // The capture's threads measure their own CPU time; the whole process includes them.
+    const CliRun r = shell("timeout -s KILL 60 " + std::string(CAPHUB_BINARY) +
+                           " run --board sim-suit --duration 3 --no-record --no-preview "
+                           "--status-file " +
+                           ::testing::TempDir() + "caphub-cpu-status.json");
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(
+        r.output, m,
+        std::regex(
+            R"(cpu: pipeline ([0-9.]+) s \([0-9.]+ % of one core\), bus workers ([0-9.]+) s )"
+            R"(\([0-9.]+ %\), whole process ([0-9.]+) s)")))
+        << r.output;
+    const double pipeline = std::stod(m[1]);
+    const double workers = std::stod(m[2]);
+    const double process = std::stod(m[3]);
+    EXPECT_GT(pipeline + workers, 0.0) << r.output;
+    EXPECT_GE(process + 0.01, pipeline + workers) << r.output;  // printed to 0.01 s
+}
+
 TEST(CliRun, APreviewPortThatIsNotANumberIsRefused) {
     // `--preview http:abc` listened on a random port (atoi read 0) instead of refusing.
     for (const std::string spec : {"http:abc", "http:8080x", "http:70000", "http::8080", "gif:x"}) {
