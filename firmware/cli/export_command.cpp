@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include "board/segment.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/export/export.h"
@@ -113,6 +114,20 @@ int runExport(const ExportArgs& a) {
                    "good pose records (gaps interpolated)\n",
                    s.damagedBytes, s.damageRanges, s.malformedPoses, s.outOfOrderPoses,
                    s.poseRecords);
+    }
+    if (!s.notMeasured.empty()) {
+        // Held at their last measured rotation in the file: said here for every format, and
+        // listed in the file where the format has room (CSV's not_measured column, glb's
+        // animation extras).
+        std::string spans;
+        for (const auto& span : s.notMeasured) {
+            spans += fmt::format("{}{} {:.3f}-{:.3f} s", spans.empty() ? "" : ", ",
+                                 board::segmentName(span.segment), span.fromS, span.toS);
+        }
+        fmt::print(stderr,
+                   "caphub export: segments not measured (their sensor out; held at their last "
+                   "measured rotation): {}\n",
+                   spans);
     }
     if (s.subjectSource.rfind("default", 0) == 0 && o.format != Format::Glb &&
         o.format != Format::Sto) {

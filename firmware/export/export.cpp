@@ -178,6 +178,7 @@ Result<ExportSummary> exportRecording(const std::string& recordingPath,
     s.damageRanges = track->damageRanges;
     s.tornTailBytes = track->tornTailBytes;
     s.subjectSource = track->subjectSource;
+    s.notMeasured = notMeasuredSpans(*track);
     return s;
 }
 

@@ -42,6 +42,8 @@ struct ExportSummary {
     std::uint64_t damageRanges = 0;
     std::uint64_t tornTailBytes = 0;
     std::string subjectSource;
+    // Segments not measured in the exported frames (held at their last measured rotation).
+    std::vector<NotMeasuredSpan> notMeasured;
 };
 
 // Progress: the stage ("reading", "writing") and its fraction done in [0, 1].

@@ -264,6 +264,21 @@ Result<void> writeGlb(const PoseTrack& track, const JointNames& names, const std
         channel(s, "rotation",
                 b.floats(rotations[static_cast<std::size_t>(s)], 4, TINYGLTF_TYPE_VEC4, 0, false));
     }
+    // The joints whose segment was not measured (its sensor out) and is held at its last
+    // measured rotation, by span in the animation's seconds: a reader can show or cut them.
+    if (const auto spans = notMeasuredSpans(track); !spans.empty()) {
+        tinygltf::Value::Array list;
+        for (const auto& span : spans) {
+            tinygltf::Value::Object o;
+            o["joint"] = tinygltf::Value(names.joint[static_cast<std::size_t>(span.segment)]);
+            o["from_s"] = tinygltf::Value(span.fromS - t0);
+            o["to_s"] = tinygltf::Value(span.toS - t0);
+            list.emplace_back(std::move(o));
+        }
+        tinygltf::Value::Object extras;
+        extras["caphub_not_measured"] = tinygltf::Value(std::move(list));
+        anim.extras = tinygltf::Value(std::move(extras));
+    }
     model.animations.push_back(anim);
 
     tinygltf::Scene scene;

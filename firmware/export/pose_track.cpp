@@ -18,6 +18,7 @@ struct RawPose {
     std::int64_t tNs = 0;
     Eigen::Vector3f rootM;
     std::array<Eigen::Quaternionf, body::kSegmentCount> q;
+    std::uint32_t notMeasured = 0;
 };
 
 bool finite(const Eigen::Vector3f& v) {
@@ -145,7 +146,31 @@ PoseFrame interpolate(const PoseFrame& a, const PoseFrame& b, double alpha) {
     for (std::size_t j = 0; j < out.qLocal.size(); ++j) {
         out.qLocal[j] = a.qLocal[j].slerp(alpha, b.qLocal[j]).normalized();  // shorter arc
     }
+    out.notMeasured = a.notMeasured | b.notMeasured;
     return out;
+}
+
+std::vector<NotMeasuredSpan> notMeasuredSpans(const PoseTrack& track) {
+    std::vector<NotMeasuredSpan> spans;
+    for (int s = 0; s < body::kSegmentCount; ++s) {
+        const std::uint32_t bit = 1u << s;
+        std::optional<NotMeasuredSpan> open;
+        for (const PoseFrame& f : track.frames) {
+            if ((f.notMeasured & bit) != 0) {
+                if (!open) {
+                    open = NotMeasuredSpan{static_cast<board::Segment>(s), f.tS, f.tS};
+                }
+                open->toS = f.tS;
+            } else if (open) {
+                spans.push_back(*open);
+                open.reset();
+            }
+        }
+        if (open) {
+            spans.push_back(*open);
+        }
+    }
+    return spans;
 }
 
 namespace {
@@ -154,6 +179,7 @@ PoseFrame toFrame(const RawPose& p, std::int64_t t0Ns) {
     PoseFrame f;
     f.tS = static_cast<double>(p.tNs - t0Ns) * 1e-9;
     f.rootM = p.rootM.cast<double>();
+    f.notMeasured = p.notMeasured;
     for (std::size_t j = 0; j < p.q.size(); ++j) {
         f.qLocal[j] = normalizedOrIdentity(p.q[j].cast<double>());
     }
@@ -194,6 +220,7 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
     RecordView v;
     Eigen::Vector3f rootM;
     std::vector<Eigen::Quaternionf> joints;
+    std::uint32_t notMeasured = 0;
     int rc = 0;
     std::uint64_t sinceProgress = 0;
     while ((rc = reader.next(v)) == 1) {
@@ -210,7 +237,7 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
         if (v.type != cap::RecordType::Pose) {
             continue;
         }
-        if (!decodePose(v, rootM, joints) || joints.size() != body::kSegmentCount ||
+        if (!decodePose(v, rootM, joints, &notMeasured) || joints.size() != body::kSegmentCount ||
             !finite(rootM) ||
             !std::all_of(joints.begin(), joints.end(),
                          [](const Eigen::Quaternionf& q) { return q.coeffs().allFinite(); })) {
@@ -226,6 +253,7 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
         p.tNs = tNs;
         p.rootM = rootM;
         std::copy(joints.begin(), joints.end(), p.q.begin());
+        p.notMeasured = notMeasured & ((1u << body::kSegmentCount) - 1);
     }
     if (rc < 0) {
         return errnoError(rc, "reading the recording");

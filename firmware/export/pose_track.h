@@ -23,6 +23,17 @@ struct PoseFrame {
     double tS = 0;                // seconds from the recording's first pose record
     Vec3d rootM = Vec3d::Zero();  // pelvis origin, skeleton world frame
     std::array<Quatd, body::kSegmentCount> qLocal;  // segment -> parent (pelvis: -> world)
+    // Bit s set: segment s had no sensor reading (its sensor, or the one it follows, out): the
+    // capture held its last measured rotation. An interpolated frame has the bits of both sides.
+    std::uint32_t notMeasured = 0;
+};
+
+// A span of exported frames in which a segment was not measured (held), in seconds from the
+// recording's first pose record, first and last frame inclusive.
+struct NotMeasuredSpan {
+    board::Segment segment = board::Segment::Pelvis;
+    double fromS = 0;
+    double toS = 0;
 };
 
 struct TrackOptions {
@@ -82,6 +93,9 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
 
 // Euler-free pose interpolation: slerp of every joint rotation, linear for the root.
 PoseFrame interpolate(const PoseFrame& a, const PoseFrame& b, double alpha);
+
+// The spans of the track's frames with a segment not measured, by segment, then time.
+std::vector<NotMeasuredSpan> notMeasuredSpans(const PoseTrack& track);
 
 // The mounting (q_segment_sensor) of the sensor on `segment` at time tS: the latest body
 // calibration at or before tS that calibrated it (the first one, before any), else the board's

@@ -63,7 +63,7 @@ Result<void> writeRows(const PoseTrack& track, const std::string& header, const 
     for (std::size_t f = 0; f < track.frames.size(); ++f) {
         WorldPose p = worldPose(track, track.frames[f]);
         continuity.apply(p);
-        row(out, track.frames[f].tS, p);
+        row(out, track.frames[f], p);
         if (out.size() > (1u << 20)) {
             file->write(out);
             out.clear();
@@ -89,16 +89,26 @@ Result<void> writeCsv(const PoseTrack& track, const JointNames& names, double un
             header += fmt::format(",{}_{}", n, c);
         }
     }
-    header += '\n';
+    header += ",not_measured\n";
     return writeRows(track, header, path, progress,
-                     [unitsPerM](std::string& out, double tS, const WorldPose& p) {
+                     [unitsPerM, &names](std::string& out, const PoseFrame& f, const WorldPose& p) {
                          auto it = std::back_inserter(out);
-                         fmt::format_to(it, "{:.6f}", tS);
+                         fmt::format_to(it, "{:.6f}", f.tS);
                          for (std::size_t s = 0; s < p.q.size(); ++s) {
                              const Quatd& q = p.q[s];
                              const Vec3d x = p.positionM[s] * unitsPerM;
                              fmt::format_to(it, ",{:.7f},{:.7f},{:.7f},{:.7f},{:.6f},{:.6f},{:.6f}",
                                             q.w(), q.x(), q.y(), q.z(), x.x(), x.y(), x.z());
+                         }
+                         // The segments held (not measured) in this frame, space separated.
+                         out += ',';
+                         const char* separator = "";
+                         for (std::size_t s = 0; s < names.segment.size(); ++s) {
+                             if ((f.notMeasured >> s & 1u) != 0) {
+                                 out += separator;
+                                 out += names.segment[s];
+                                 separator = " ";
+                             }
                          }
                          out += '\n';
                      });
@@ -150,17 +160,18 @@ Result<void> writeSto(const PoseTrack& track, const JointNames& names, StoOrient
     }
     header += '\n';
     const bool sensors = which == StoOrientations::Sensors;
-    return writeRows(
-        track, header, path, progress, [&](std::string& out, double tS, const WorldPose& p) {
-            auto it = std::back_inserter(out);
-            fmt::format_to(it, "{:.6f}", tS);
-            for (const auto& c : *columns) {
-                const auto i = static_cast<std::size_t>(c.segment);
-                const Quatd& q = sensors ? p.qSensor[i] : p.q[i];
-                fmt::format_to(it, "\t{:.7f},{:.7f},{:.7f},{:.7f}", q.w(), q.x(), q.y(), q.z());
-            }
-            out += '\n';
-        });
+    return writeRows(track, header, path, progress,
+                     [&](std::string& out, const PoseFrame& f, const WorldPose& p) {
+                         auto it = std::back_inserter(out);
+                         fmt::format_to(it, "{:.6f}", f.tS);
+                         for (const auto& c : *columns) {
+                             const auto i = static_cast<std::size_t>(c.segment);
+                             const Quatd& q = sensors ? p.qSensor[i] : p.q[i];
+                             fmt::format_to(it, "\t{:.7f},{:.7f},{:.7f},{:.7f}", q.w(), q.x(),
+                                            q.y(), q.z());
+                         }
+                         out += '\n';
+                     });
 }
 
 }  // namespace caphub::firmware::exporter

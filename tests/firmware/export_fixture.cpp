@@ -95,7 +95,11 @@ std::vector<RecordedPose> writeWalkRecording(const std::string& path,
             p.qLocal[i] = local.normalized().cast<float>();
         }
         if (options.withPoses) {
-            if ((*writer)->writePose(timestampFromNs(p.tNs), p.rootM, p.qLocal) != 0) {
+            const std::uint32_t held = tNs >= std::llround(options.heldFromS * 1e9) &&
+                                               tNs <= std::llround(options.heldToS * 1e9)
+                                           ? options.heldSegments
+                                           : 0;
+            if ((*writer)->writePose(timestampFromNs(p.tNs), p.rootM, p.qLocal, held) != 0) {
                 throw std::runtime_error("writePose failed");
             }
         } else {

@@ -31,6 +31,11 @@ struct WalkRecordingOptions {
     // capture does (docs/body-calibration.md, "In recordings"); empty: none.
     std::string bodyCalibrationText;
     double calibrationAtS = 0;
+    // Poses from heldFromS to heldToS (seconds from the first, inclusive) flag these segments
+    // as not measured, as the capture does while their sensor is out.
+    std::uint32_t heldSegments = 0;
+    double heldFromS = 0;
+    double heldToS = -1;
 };
 
 // Writes the recording (replacing any file at path) and returns the poses it holds.

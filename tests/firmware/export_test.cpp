@@ -68,6 +68,9 @@ std::vector<std::string> split(const std::string& s, char sep) {
     while (std::getline(in, cell, sep)) {
         out.push_back(cell);
     }
+    if (!s.empty() && s.back() == sep) {
+        out.emplace_back();  // getline does not give the empty last cell
+    }
     return out;
 }
 
@@ -471,11 +474,12 @@ TEST(ExportCsv, HeaderRowsAndPositionsInTheChosenUnit) {
     const auto rows = lines(readText(out));
     ASSERT_EQ(rows.size(), walk().size() + 1);
     const auto header = split(rows[0], ',');
-    ASSERT_EQ(header.size(), 1u + 21 * 7);
+    ASSERT_EQ(header.size(), 1u + 21 * 7 + 1);
     EXPECT_EQ(header[0], "t");
     EXPECT_EQ(header[1], "pelvis_qw");
     EXPECT_EQ(header[7], "pelvis_pz");
     EXPECT_EQ(header[1 + 20 * 7 + 6], "r_middistal_pz");
+    EXPECT_EQ(header.back(), "not_measured");
     for (std::size_t f = 0; f < walk().size(); f += 37) {
         const auto cells = split(rows[f + 1], ',');
         ASSERT_EQ(cells.size(), header.size());
@@ -700,6 +704,83 @@ TEST(ExportSto, OpenSimNamesAreForStoOnlyAndSensorsNeedABoard) {
     EXPECT_THAT(r.error().message, HasSubstr("--orientations segments"));
     EXPECT_EQ(kind, FailureKind::Input);
     exportOk(rec, temp("boardless-segments.sto"), stoOf(StoOrientations::Segments));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Segments not measured (a sensor out): held in the file, and said.
+
+// The walk with the left hand and forearm not measured from 1.0 to 1.5 s.
+std::string heldWalkPath() {
+    static const std::string path = [] {
+        const std::string p = temp("held.cap");
+        WalkRecordingOptions o;
+        o.heldSegments = 1u << static_cast<int>(board::Segment::LHand) |
+                         1u << static_cast<int>(board::Segment::LForearm);
+        o.heldFromS = 1.0;
+        o.heldToS = 1.5;
+        (void)writeWalkRecording(p, o);
+        return p;
+    }();
+    return path;
+}
+
+TEST(ExportNotMeasured, TheSummaryListsEachSegmentsSpan) {
+    const ExportSummary s = exportOk(heldWalkPath(), temp("held.bvh"), {});
+    ASSERT_EQ(s.notMeasured.size(), 2u);
+    for (const auto& span : s.notMeasured) {
+        EXPECT_TRUE(span.segment == board::Segment::LHand ||
+                    span.segment == board::Segment::LForearm);
+        EXPECT_NEAR(span.fromS, 1.0, 1e-9);
+        EXPECT_NEAR(span.toS, 1.5, 1e-9);
+    }
+    EXPECT_TRUE(exportOk(walkPath(), temp("measured.bvh"), {}).notMeasured.empty());
+}
+
+TEST(ExportNotMeasured, CsvNamesTheHeldSegmentsInEachRow) {
+    const std::string out = temp("held.csv");
+    exportOk(heldWalkPath(), out, as(Format::Csv));
+    const auto rows = lines(readText(out));
+    ASSERT_EQ(rows.size(), 301u);
+    int held = 0;
+    for (std::size_t f = 1; f < rows.size(); ++f) {
+        const auto cells = split(rows[f], ',');
+        const double t = std::stod(cells[0]);
+        ASSERT_EQ(cells.size(), 1u + 21 * 7 + 1);
+        const std::string& last = cells.back();
+        if (t >= 1.0 - 1e-9 && t <= 1.5 + 1e-9) {
+            EXPECT_EQ(last, "l_forearm l_hand") << rows[f].substr(0, 12);
+            ++held;
+        } else {
+            EXPECT_EQ(last, "") << rows[f].substr(0, 12);
+        }
+    }
+    EXPECT_EQ(held, 51);
+}
+
+TEST(ExportNotMeasured, GlbListsTheHeldJointsInTheAnimationsExtras) {
+    const std::string out = temp("held.glb");
+    exportOk(heldWalkPath(), out, as(Format::Glb));
+    tinygltf::TinyGLTF loader;
+    tinygltf::Model model;
+    std::string err;
+    std::string warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&model, &err, &warn, out)) << err;
+    ASSERT_EQ(model.animations.size(), 1u);
+    const tinygltf::Value& list = model.animations[0].extras.Get("caphub_not_measured");
+    ASSERT_TRUE(list.IsArray());
+    ASSERT_EQ(list.ArrayLen(), 2u);
+    std::vector<std::string> joints;
+    for (std::size_t i = 0; i < list.ArrayLen(); ++i) {
+        joints.push_back(list.Get(static_cast<int>(i)).Get("joint").Get<std::string>());
+        EXPECT_NEAR(list.Get(static_cast<int>(i)).Get("from_s").GetNumberAsDouble(), 1.0, 1e-9);
+        EXPECT_NEAR(list.Get(static_cast<int>(i)).Get("to_s").GetNumberAsDouble(), 1.5, 1e-9);
+    }
+    EXPECT_THAT(joints, ::testing::UnorderedElementsAre("l_elbow", "l_radiocarpal"));
+    // A recording with every segment measured has no such list.
+    exportOk(walkPath(), temp("measured.glb"), as(Format::Glb));
+    tinygltf::Model measured;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&measured, &err, &warn, temp("measured.glb"))) << err;
+    EXPECT_FALSE(measured.animations.at(0).extras.Has("caphub_not_measured"));
 }
 
 // ---------------------------------------------------------------------------------------------
