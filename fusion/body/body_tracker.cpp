@@ -118,15 +118,26 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     if (options_.footInertial && h.count == 2) {
         for (std::size_t k = 0; k < 2; ++k) {
             if (u.sensor == footSensor_[k]) {
-                footInertial_[k].add(u.qEnuSensor.cast<double>(),
-                                     u.specificForceMps2.cast<double>(), u.rateRadS.cast<double>(),
-                                     toSeconds(h.latestT - h.previousT));
+                FootInertial& f = footInertial_[k];
+                f.add(u.qEnuSensor.cast<double>(), u.specificForceMps2.cast<double>(),
+                      u.rateRadS.cast<double>(), toSeconds(h.latestT - h.previousT));
+                footHistory_[k].push(
+                    FootSample{t, f.valid(), f.still(), f.velocityEnuMps(), f.rateEnuRadS()});
             }
         }
     }
     if (u.sensor == pelvisSensor_) {
-        pelvisForceSumEnu_ += u.qEnuSensor.cast<double>() * u.specificForceMps2.cast<double>();
-        ++pelvisForceCount_;
+        if (pelvisCount_ == kPelvisPending) {
+            // Never more than a few samples wait (the watermark is at most a sample interval
+            // behind); a ring full counts its oldest into the next pose.
+            pelvisForceSumEnu_ += pelvisPending_[pelvisHead_].forceEnuMps2;
+            ++pelvisForceCount_;
+            pelvisHead_ = (pelvisHead_ + 1) % kPelvisPending;
+            --pelvisCount_;
+        }
+        pelvisPending_[(pelvisHead_ + pelvisCount_) % kPelvisPending] =
+            PelvisForce{t, u.qEnuSensor.cast<double>() * u.specificForceMps2.cast<double>()};
+        ++pelvisCount_;
     }
     if (headingResetAt_ && t >= *headingResetAt_) {
         applyHeadingReset(*headingResetAt_, events);
@@ -154,8 +165,15 @@ const TrackedPose& BodyTracker::solveAt(Timestamp t) {
     const SensorFrame frame = frameAt(t);
     const double dtS = poses_ == 0 ? toSeconds(period_) : toSeconds(t - lastPose_);
     lastPose_ = t;
-    // The pelvis accelerometer over the frame, in the skeleton world frame: it tells a flight
-    // phase (a jump, a running stride) from stance, and the velocity at take-off.
+    // The pelvis accelerometer over the frame (its readings up to t), in the skeleton world
+    // frame: it tells a flight phase (a jump, a running stride) from stance, and the velocity at
+    // take-off.
+    while (pelvisCount_ > 0 && pelvisPending_[pelvisHead_].t <= t) {
+        pelvisForceSumEnu_ += pelvisPending_[pelvisHead_].forceEnuMps2;
+        ++pelvisForceCount_;
+        pelvisHead_ = (pelvisHead_ + 1) % kPelvisPending;
+        --pelvisCount_;
+    }
     std::optional<Vec3d> rootSpecificForce;
     if (pelvisForceCount_ > 0) {
         rootSpecificForce =
@@ -163,17 +181,20 @@ const TrackedPose& BodyTracker::solveAt(Timestamp t) {
         pelvisForceSumEnu_.setZero();
         pelvisForceCount_ = 0;
     }
-    // The feet's dead reckoning, in the skeleton world frame.
+    // The feet's dead reckoning at t, in the skeleton world frame.
     FootSensorMotion feet;
     const Quatd qWorldEnu = calibration_.qEnuWorld().conjugate();
     for (std::size_t k = 0; k < 2; ++k) {
         const int i = footSensor_[k];
-        if (options_.footInertial && i >= 0 && held_[static_cast<std::size_t>(i)].count > 0 &&
-            footInertial_[k].valid()) {
+        if (!options_.footInertial || i < 0 || held_[static_cast<std::size_t>(i)].count == 0) {
+            continue;
+        }
+        const std::optional<FootSample> f = footHistory_[k].at(t);
+        if (f && f->valid) {
             feet.valid[k] = true;
-            feet.still[k] = footInertial_[k].still();
-            feet.velocityMps[k] = qWorldEnu * footInertial_[k].velocityEnuMps();
-            feet.rateRadS[k] = qWorldEnu * footInertial_[k].rateEnuRadS();
+            feet.still[k] = f->still;
+            feet.velocityMps[k] = qWorldEnu * f->velocityEnuMps;
+            feet.rateRadS[k] = qWorldEnu * f->rateEnuRadS;
             feet.onFootM[k] = sensors_[static_cast<std::size_t>(i)].positionM;
         }
     }
@@ -232,6 +253,7 @@ void BodyTracker::forget(std::size_t sensor) {
     for (std::size_t k = 0; k < 2; ++k) {
         if (footSensor_[k] == static_cast<int>(sensor)) {
             footInertial_[k].reset();
+            footHistory_[k].clear();
         }
     }
     // Its orientations before and after differ (a restarted filter finds its heading anew): the

@@ -160,6 +160,13 @@ private:
         Timestamp latestT{};
         int count = 0;  // orientations held: 0, 1 or 2
     };
+    // The pelvis accelerometer's readings (ENU, m/s^2) not yet taken by a pose, by time.
+    struct PelvisForce {
+        Timestamp t{};
+        Vec3d forceEnuMps2 = Vec3d::Zero();
+    };
+    static constexpr std::size_t kPelvisPending = 32;
+
     // A calibration being averaged: per window and sensor the sum of sign-aligned quaternions.
     struct Window {
         Timestamp from{};
@@ -198,10 +205,17 @@ private:
     // The feet's sensors (-1 when none) and their dead reckoning.
     std::array<int, 2> footSensor_{-1, -1};
     std::array<FootInertial, 2> footInertial_;
-    // The pelvis accelerometer's readings since the last pose, each turned into ENU (m/s^2);
-    // their mean goes to the skeleton world frame once per pose.
+    // Each foot's state after its latest samples: a pose is solved at the watermark, up to a
+    // sample interval after its grid time, and takes the feet as they were at the grid time.
+    std::array<FootStateHistory, 2> footHistory_;
+    // The pelvis accelerometer's readings up to each pose's grid time, each turned into ENU
+    // (m/s^2); their mean goes to the skeleton world frame once per pose. Readings past the grid
+    // time wait in pelvisPending_ (a ring) for the next pose.
     Vec3d pelvisForceSumEnu_ = Vec3d::Zero();
     int pelvisForceCount_ = 0;
+    std::array<PelvisForce, kPelvisPending> pelvisPending_;
+    std::size_t pelvisHead_ = 0;  // the oldest pending
+    std::size_t pelvisCount_ = 0;
 
     BodyCalibration calibration_;
     bool calibrated_ = false;

@@ -1,5 +1,6 @@
 #include "fusion/body/foot_inertial.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace caphub::body {
@@ -37,6 +38,37 @@ void FootInertial::add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Ve
         sinceStillS_ += dtS;
     }
     lastAcceleration_ = acceleration;
+}
+
+void FootStateHistory::push(const FootSample& s) {
+    states_[head_] = s;
+    head_ = (head_ + 1) % kSize;
+    count_ = std::min(count_ + 1, kSize);
+}
+
+std::optional<FootSample> FootStateHistory::at(Timestamp t) const {
+    if (count_ == 0) {
+        return std::nullopt;
+    }
+    if (t >= newest(0).t) {
+        return newest(0);
+    }
+    for (std::size_t k = 1; k < count_; ++k) {
+        const FootSample& before = newest(k);
+        if (before.t <= t) {
+            const FootSample& after = newest(k - 1);
+            FootSample s = before;
+            // A zero-velocity update at `after` is a step, kept on its side: not interpolated.
+            if (before.valid && after.valid && !after.still) {
+                const double along = toSeconds(t - before.t) / toSeconds(after.t - before.t);
+                s.velocityEnuMps += (after.velocityEnuMps - before.velocityEnuMps) * along;
+                s.rateEnuRadS += (after.rateEnuRadS - before.rateEnuRadS) * along;
+            }
+            s.t = t;
+            return s;
+        }
+    }
+    return newest(count_ - 1);
 }
 
 }  // namespace caphub::body

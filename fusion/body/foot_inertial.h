@@ -5,7 +5,12 @@
 // cannot: the planted foot slipping (docs/skeleton.md, "The planted foot's slip").
 #pragma once
 
+#include <array>
+#include <cstddef>
+#include <optional>
+
 #include "fusion/body/skeleton.h"
+#include "hal/core/time.h"
 
 namespace caphub::body {
 
@@ -48,6 +53,38 @@ private:
     double quietForS_ = -1;  // how long the samples have been quiet; < 0: the latest was not
     bool still_ = false;
     bool started_ = false;  // a still instant since the reset
+};
+
+// A foot's dead reckoning as it stood after one of its samples.
+struct FootSample {
+    Timestamp t{};
+    bool valid = false;
+    bool still = false;
+    Vec3d velocityEnuMps = Vec3d::Zero();
+    Vec3d rateEnuRadS = Vec3d::Zero();
+};
+
+// The states after a foot's latest samples (a ring of 8), to take the foot at a time just
+// before its newest sample: a pose's grid time, which the watermark solves up to a sample
+// interval later.
+class FootStateHistory {
+public:
+    static constexpr std::size_t kSize = 8;
+    void push(const FootSample& s);
+    void clear() { count_ = 0; }
+    // The state at t: the velocity and rate interpolated between the samples around it (the
+    // still flag and validity of the one at or before t; not interpolated towards a still one,
+    // whose zero velocity is a step), the oldest held when t is before them all, the newest
+    // when after. Empty when there is none.
+    std::optional<FootSample> at(Timestamp t) const;
+
+private:
+    const FootSample& newest(std::size_t k) const {  // 0: the newest
+        return states_[(head_ + kSize - 1 - k) % kSize];
+    }
+    std::array<FootSample, kSize> states_;
+    std::size_t head_ = 0;  // where the next goes
+    std::size_t count_ = 0;
 };
 
 }  // namespace caphub::body

@@ -97,5 +97,57 @@ TEST(FootInertial, AResetForgetsTheMotion) {
     EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
 }
 
+FootSample stateAt(int ms, double vx, bool still = false) {
+    FootSample s;
+    s.t = Timestamp{std::chrono::milliseconds(ms)};
+    s.valid = true;
+    s.still = still;
+    s.velocityEnuMps = Vec3d(vx, 0, 0);
+    s.rateEnuRadS = Vec3d(0, 0, 2 * vx);
+    return s;
+}
+
+TEST(FootStateHistory, TakesTheFootAtATimeBetweenItsSamples) {
+    // A pose at the watermark is solved up to a sample interval after its grid time: the foot
+    // must be taken at the grid time, not as its newest sample left it.
+    FootStateHistory h;
+    EXPECT_FALSE(h.at(Timestamp{}).has_value());
+    h.push(stateAt(0, 0.0));
+    h.push(stateAt(10, 1.0));
+    h.push(stateAt(20, 3.0));
+    const auto mid = h.at(Timestamp{std::chrono::milliseconds(15)});
+    ASSERT_TRUE(mid.has_value());
+    EXPECT_NEAR(mid->velocityEnuMps.x(), 2.0, 1e-12);
+    EXPECT_NEAR(mid->rateEnuRadS.z(), 4.0, 1e-12);
+    EXPECT_EQ(mid->t, Timestamp{std::chrono::milliseconds(15)});
+    EXPECT_NEAR(h.at(Timestamp{std::chrono::milliseconds(10)})->velocityEnuMps.x(), 1.0, 1e-12);
+    // After the newest: the newest; before the oldest held: the oldest.
+    EXPECT_NEAR(h.at(Timestamp{std::chrono::milliseconds(40)})->velocityEnuMps.x(), 3.0, 1e-12);
+    EXPECT_NEAR(h.at(Timestamp{std::chrono::milliseconds(-5)})->velocityEnuMps.x(), 0.0, 1e-12);
+}
+
+TEST(FootStateHistory, AStillSampleIsAStepNotARamp) {
+    FootStateHistory h;
+    h.push(stateAt(0, 2.0));
+    h.push(stateAt(10, 0.0, true));  // a zero-velocity update
+    const auto s = h.at(Timestamp{std::chrono::milliseconds(5)});
+    ASSERT_TRUE(s.has_value());
+    EXPECT_FALSE(s->still);
+    EXPECT_NEAR(s->velocityEnuMps.x(), 2.0, 1e-12);
+    EXPECT_TRUE(h.at(Timestamp{std::chrono::milliseconds(10)})->still);
+}
+
+TEST(FootStateHistory, KeepsTheLatestEightAndForgetsOnClear) {
+    FootStateHistory h;
+    for (int k = 0; k < 12; ++k) {
+        h.push(stateAt(10 * k, k));
+    }
+    // Samples 4..11 are held: before 40 ms the oldest held (4) answers.
+    EXPECT_NEAR(h.at(Timestamp{std::chrono::milliseconds(0)})->velocityEnuMps.x(), 4.0, 1e-12);
+    EXPECT_NEAR(h.at(Timestamp{std::chrono::milliseconds(55)})->velocityEnuMps.x(), 5.5, 1e-12);
+    h.clear();
+    EXPECT_FALSE(h.at(Timestamp{std::chrono::milliseconds(55)}).has_value());
+}
+
 }  // namespace
 }  // namespace caphub::body
