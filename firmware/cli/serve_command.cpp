@@ -17,6 +17,9 @@
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/serve/auth.h"
+#include "firmware/serve/calibration_motion.h"
+#include "firmware/serve/sample_tap.h"
+#include "firmware/serve/sensor_calibration_session.h"
 #include "firmware/serve/web_server.h"
 #include "render/sinks.h"
 
@@ -144,6 +147,16 @@ int runServe(const ServeOptions& o) {
             so.calibration = kept.string();
         }
     }
+    // The guided sensor calibration: on the virtual suit it plays the calibration motions.
+    std::shared_ptr<serve::CalibrationMotion> motion;
+    if (board::allBusesSimulated(b)) {
+        if (const auto profile = board::sim::parseErrorProfile(so.profile)) {
+            motion = std::make_shared<serve::CalibrationMotion>(b, *profile, so.seed);
+            so.wrapSources = [motion](board::sim::SourceFactory inner) {
+                return motion->wrap(std::move(inner));
+            };
+        }
+    }
     auto setup = buildCaptureSetup(b, so);
     if (!setup) {
         fmt::print(stderr, "caphub serve: {}\n", setup.error().message);
@@ -174,7 +187,11 @@ int runServe(const ServeOptions& o) {
             preview.reset();
         }
     }
+    serve::SampleTap tap;
+    ho.stages.push_back(&tap);
     Hub hub(b, *setup->clock, *setup->suit, std::move(ho));
+    serve::SensorCalibrationSession calibration(b, *setup->clock, tap, motion,
+                                                stateDir / "calibration.toml", so.calibration);
     signals.arm(hub.capture());
     hub.start(durationFromSeconds(o.durationS));
 
@@ -186,6 +203,7 @@ int runServe(const ServeOptions& o) {
     wo.webRoot = webRoot;
     wo.version = versionLine();
     wo.sensorCalibration = so.calibration;
+    wo.calibrationSession = &calibration;
     wo.preview = preview;
     wo.threads = o.threads;
     wo.maxStreams = o.maxStreams;

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "firmware/runtime/status_stage.h"
+#include "firmware/serve/sensor_calibration_session.h"
 #include "firmware/serve/web_state.h"
 #include "fusion/body/skeleton.h"
 
@@ -46,6 +47,9 @@ Json WebServer::State::buildState(const HubState& h) {
     doc["version"] = options.version;
     doc["sensor_calibration"] =
         options.sensorCalibration.empty() ? Json(nullptr) : Json(options.sensorCalibration);
+    if (options.calibrationSession != nullptr) {
+        doc["sensor_calibration_session"] = options.calibrationSession->status();
+    }
     // Per sensor: gyroscope clipping episodes (saturation), by board sensor.
     for (auto& sensor : doc["sensors"]) {
         const std::string name = sensor["name"].get<std::string>();

@@ -102,6 +102,7 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     s->liveRoutes();
     s->commandRoutes();
     s->takeRoutes();
+    s->sensorCalibrationRoutes();
     if (s->options.port == 0) {
         s->port = s->server.bind_to_any_port(s->options.host);
     } else {

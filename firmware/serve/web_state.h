@@ -5,6 +5,7 @@
 //   web_live_routes.cpp      the state document (polled and as events), poses, the preview
 //   web_command_routes.cpp   commands into the Hub: takes, markers, body calibration, heading
 //   web_take_routes.cpp      the take list, each take's summary, downloads, exports, deletion
+//   web_sensor_calibration_routes.cpp   the guided sensor calibration
 #pragma once
 
 // clang-format off
@@ -154,6 +155,7 @@ struct WebServer::State {
     void liveRoutes();
     void commandRoutes();
     void takeRoutes();
+    void sensorCalibrationRoutes();
 };
 
 }  // namespace caphub::firmware::serve
