@@ -50,6 +50,9 @@ struct ServeOptions {
     std::string statusFile;
     int threads = 24;
     int maxStreams = 12;
+    // Virtual suit: the subject first holds this pose (tpose, npose) for leadInS seconds.
+    std::string leadIn;
+    double leadInS = 8;
 };
 
 // $CAPHUB_STATE_DIR; /var/lib/caphub when it is a folder this user may write (the service's);
@@ -139,6 +142,16 @@ int runServe(const ServeOptions& o) {
     }
     const board::Board& b = *loaded;
     CaptureSetupOptions so = o.suit;
+    if (!o.leadIn.empty()) {
+        if (o.leadIn != "tpose" && o.leadIn != "npose") {
+            fmt::print(stderr, "caphub serve: --lead-in: expected tpose or npose, got '{}'\n",
+                       o.leadIn);
+            return kExitUsage;
+        }
+        so.leadInPose =
+            o.leadIn == "tpose" ? body::ReferencePoseKind::T : body::ReferencePoseKind::N;
+        so.holdS = o.leadInS;
+    }
     so.calibration = o.calibration;
     if (so.calibration.empty()) {
         // The sensor calibration kept on the hub is applied at every start.
@@ -266,6 +279,12 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     addVirtualSuitOptions(*cmd, o->suit);
+    cmd->add_option("--lead-in", o->leadIn,
+                    "Virtual suit: the subject first holds this pose (tpose, npose), for a body "
+                    "calibration at the start");
+    cmd->add_option("--lead-in-s", o->leadInS, "Virtual suit: how long the lead-in pose is held")
+        ->check(CLI::Range(1.0, 120.0))
+        ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (default: calibration.toml in the state folder, "
                     "when there is one)");
