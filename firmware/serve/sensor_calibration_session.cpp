@@ -62,6 +62,98 @@ double number(const Json& j, const char* key, double fallback, double lo, double
     return v.get<double>();
 }
 
+// One kind's calibration of every sensor, merged into `set`: each sensor's row for the page and
+// the quality figure of the worst sensor.
+struct Computed {
+    Json sensors = Json::array();
+    int done = 0;
+    Json quality;
+};
+
+Computed computeAll(SensorCalibrationKind kind, const board::Board& board,
+                    const CalibrationSamples& samples, CalibrationSet& set) {
+    Computed out;
+    double worst = 0;
+    double minCoverage = 1;
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        const std::string& name = board.sensors[i].name;
+        fusion::SensorCalibration cal =
+            set.count(name) != 0 ? set[name] : fusion::SensorCalibration{};
+        Json row{{"name", name}};
+        std::string failure;
+        switch (kind) {
+            case SensorCalibrationKind::Gyro: {
+                const auto g = calibrateGyroBias(samples, i, cal);
+                if (!g) {
+                    failure = g.error().message;
+                    break;
+                }
+                const double stdDps = g->stdRadS.maxCoeff() * kRadToDeg;
+                row["samples"] = g->samples;
+                row["bias_dps"] = g->biasRadS.norm() * kRadToDeg;
+                row["noise_dps"] = stdDps;
+                worst = std::max(worst, stdDps);
+                break;
+            }
+            case SensorCalibrationKind::Accel: {
+                const auto a = calibrateAxes(samples, i, cal);
+                if (!a) {
+                    failure = a.error().message;
+                    break;
+                }
+                row["positions"] = a->heldPositions;
+                row["residual_mps2"] = a->acc.residualMps2;
+                row["gyro_axes"] = a->gyro.has_value();
+                worst = std::max(worst, a->acc.residualMps2);
+                break;
+            }
+            case SensorCalibrationKind::Mag: {
+                const auto m = calibrateMagnetometer(samples, i, cal);
+                if (!m) {
+                    failure = m.error().message;
+                    break;
+                }
+                row["readings"] = samples.mag[i].size();
+                row["quality_pct"] = m->fit.qualityPct;
+                row["coverage"] = m->fit.coverage;
+                row["aligned"] = m->align.has_value();
+                worst = std::max(worst, m->fit.qualityPct);
+                minCoverage = std::min(minCoverage, m->fit.coverage);
+                break;
+            }
+        }
+        row["ok"] = failure.empty();
+        if (!failure.empty()) {
+            row["error"] = failure;
+        } else {
+            set[name] = cal;
+            ++out.done;
+        }
+        out.sensors.push_back(std::move(row));
+    }
+    switch (kind) {
+        case SensorCalibrationKind::Gyro:
+            out.quality = {{"figure", "gyroscope noise at rest, worst sensor"},
+                           {"value", worst},
+                           {"unit", "deg/s"}};
+            break;
+        case SensorCalibrationKind::Accel:
+            out.quality = {{"figure",
+                            "RMS miss of |acceleration| from g over the positions, worst "
+                            "sensor"},
+                           {"value", worst},
+                           {"unit", "m/s^2"}};
+            break;
+        case SensorCalibrationKind::Mag:
+            out.quality = {{"figure", "RMS scatter of the corrected field strength, worst sensor"},
+                           {"value", worst},
+                           {"unit", "%"},
+                           {"coverage", minCoverage}};
+            break;
+    }
+    return out;
+}
+
 }  // namespace
 
 Result<SensorCalibrationRequest> parseSensorCalibrationRequest(const Json& j) {
@@ -263,87 +355,11 @@ void SensorCalibrationSession::run(SensorCalibrationRequest r) {
             error = existing.error().message;
         }
     }
-    Json sensors = Json::array();
-    int done = 0;
-    double worst = 0;
-    double minCoverage = 1;
-    for (std::size_t i = 0; i < board_.sensors.size() && error.empty(); ++i) {
-        const std::string& name = board_.sensors[i].name;
-        fusion::SensorCalibration cal =
-            set.count(name) != 0 ? set[name] : fusion::SensorCalibration{};
-        Json row{{"name", name}};
-        std::string failure;
-        switch (r.kind) {
-            case SensorCalibrationKind::Gyro: {
-                const auto g = calibrateGyroBias(samples, i, cal);
-                if (!g) {
-                    failure = g.error().message;
-                    break;
-                }
-                const double stdDps = g->stdRadS.maxCoeff() * kRadToDeg;
-                row["samples"] = g->samples;
-                row["bias_dps"] = g->biasRadS.norm() * kRadToDeg;
-                row["noise_dps"] = stdDps;
-                worst = std::max(worst, stdDps);
-                break;
-            }
-            case SensorCalibrationKind::Accel: {
-                const auto a = calibrateAxes(samples, i, cal);
-                if (!a) {
-                    failure = a.error().message;
-                    break;
-                }
-                row["positions"] = a->heldPositions;
-                row["residual_mps2"] = a->acc.residualMps2;
-                row["gyro_axes"] = a->gyro.has_value();
-                worst = std::max(worst, a->acc.residualMps2);
-                break;
-            }
-            case SensorCalibrationKind::Mag: {
-                const auto m = calibrateMagnetometer(samples, i, cal);
-                if (!m) {
-                    failure = m.error().message;
-                    break;
-                }
-                row["readings"] = samples.mag[i].size();
-                row["quality_pct"] = m->fit.qualityPct;
-                row["coverage"] = m->fit.coverage;
-                row["aligned"] = m->align.has_value();
-                worst = std::max(worst, m->fit.qualityPct);
-                minCoverage = std::min(minCoverage, m->fit.coverage);
-                break;
-            }
-        }
-        row["ok"] = failure.empty();
-        if (!failure.empty()) {
-            row["error"] = failure;
-        } else {
-            set[name] = cal;
-            ++done;
-        }
-        sensors.push_back(std::move(row));
+    Computed computed;
+    if (error.empty()) {
+        computed = computeAll(r.kind, board_, samples, set);
     }
-    Json quality;
-    switch (r.kind) {
-        case SensorCalibrationKind::Gyro:
-            quality = {{"figure", "gyroscope noise at rest, worst sensor"},
-                       {"value", worst},
-                       {"unit", "deg/s"}};
-            break;
-        case SensorCalibrationKind::Accel:
-            quality = {{"figure",
-                        "RMS miss of |acceleration| from g over the positions, worst "
-                        "sensor"},
-                       {"value", worst},
-                       {"unit", "m/s^2"}};
-            break;
-        case SensorCalibrationKind::Mag:
-            quality = {{"figure", "RMS scatter of the corrected field strength, worst sensor"},
-                       {"value", worst},
-                       {"unit", "%"},
-                       {"coverage", minCoverage}};
-            break;
-    }
+    const int done = computed.done;
     std::string saved;
     if (error.empty() && done > 0) {
         fs::create_directories(file_.parent_path(), ec);  // the state folder's first use
@@ -367,11 +383,13 @@ void SensorCalibrationSession::run(SensorCalibrationRequest r) {
                                 "next start of caphub serve.",
                                 done, n, saved)
                           : error;
-        procedure_["result"] = {
-            {"calibrated", done}, {"sensors_total", n},
-            {"quality", quality}, {"samples_dropped", dropped},
-            {"sensors", sensors}, {"file", saved.empty() ? Json(nullptr) : Json(saved)},
-            {"error", error}};
+        procedure_["result"] = {{"calibrated", done},
+                                {"sensors_total", n},
+                                {"quality", computed.quality},
+                                {"samples_dropped", dropped},
+                                {"sensors", computed.sensors},
+                                {"file", saved.empty() ? Json(nullptr) : Json(saved)},
+                                {"error", error}};
         if (!saved.empty()) {
             saved_ = saved;
         }
