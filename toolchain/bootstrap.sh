@@ -17,6 +17,9 @@ program_packages=(
   nlohmann-json3-dev libstb-dev
   # Live streams: OSC (VMC, VRChat, caphub's own) with liblo.
   liblo-dev
+  # caphub serve: password hashing (libsodium), three.js for its page; the main job's scripted
+  # session against it is a python3 script (standard library only).
+  libsodium-dev libjs-three python3
 )
 # Besides, for the tests, the cross builds and the packages (`bootstrap.sh`, the default).
 test_packages=(
@@ -35,9 +38,8 @@ test_packages=(
   blender python3-numpy
   # Export tests: the Khronos glTF validator (npm gltf-validator) runs on node.
   nodejs npm
-  # caphub serve: password hashing (libsodium), three.js for its page; its browser test drives
-  # Debian's headless Chromium with Selenium.
-  libsodium-dev libjs-three chromium chromium-driver python3-selenium
+  # caphub serve's browser test drives Debian's headless Chromium with Selenium.
+  chromium chromium-driver python3-selenium
 )
 
 case "${1:-all}" in

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The two commands of the README, and what CI runs.
-#   dev.sh run         bootstrap, build (release), run caphub on the virtual suit
+#   dev.sh run         bootstrap, build (release), a scripted caphub serve session on the virtual suit
 #   dev.sh test        bootstrap, build (debug), run every test with ctest
 #   dev.sh test asan   the same under AddressSanitizer + UndefinedBehaviorSanitizer
 #   dev.sh test aarch64   cross build for arm64, unit tests under qemu-aarch64 (armhf: qemu-arm)
@@ -29,36 +29,20 @@ run)
     cmake --preset release -DCAPHUB_BUILD_TESTS=OFF -DCAPHUB_BUILD_BENCHMARKS=OFF >/dev/null
     cmake --build --preset release --target caphub
     out="$root/out"
-    rm -rf "$out/recordings" "$out/preview" "$out/exports"
+    rm -rf "$out/recordings" "$out/exports" "$out/state"
     mkdir -p "$out/recordings" "$out/exports"
     caphub=build/release/bin/caphub
     board=board/sim-suit.toml
     "$caphub" boards validate "$board" --quiet
-    # The main job on the default virtual suit (17 sensors): calibrate the sensors (gyro bias
-    # at rest, accelerometer and gyroscope axes in fourteen positions, magnetometer turned
-    # through every direction), then
-    # capture paced to real time: the subject calibrates in the T-pose, then walks; every sample,
-    # orientation, pose and event is recorded and preview frames are rendered. Then the
-    # recording is described and exported to BVH and glTF.
-    calibration="$out/calibration.toml"
-    rm -f "$calibration"
-    for kind in gyro accel mag; do
-        "$caphub" calibrate "$kind" --board "$board" --file "$calibration" | tail -n 1
-    done
-    recording="$out/recordings/capture.cap"
-    "$caphub" run --board "$board" --duration "${CAPHUB_RUN_SECONDS:-12}" --calibrate tpose \
-        --calibration "$calibration" --preview "png:$out/preview" --preview-fps 5 \
-        --record "$recording" | tee "$out/run-report.txt"
-    "$caphub" info "$recording" >"$out/recording-info.txt"
-    "$caphub" export "$recording" --format bvh -o "$out/exports/capture.bvh"
-    "$caphub" export "$recording" --format glb -o "$out/exports/capture.glb"
+    # The main job: `caphub serve` on the default virtual suit (17 sensors, paced to real time,
+    # 127.0.0.1 only) operated through its HTTP API as the web page does it
+    # (toolchain/serve_session.py, docs/serve.md): the sensors' guided calibration (the virtual
+    # subject does each motion), saved on the hub and applied at its restart; the body's
+    # calibration in the T-pose; two named takes; BVH and glTF exports downloaded.
+    python3 toolchain/serve_session.py "$caphub" "$board" "$out"
     echo
-    echo "output: $calibration (the sensors' calibration)"
-    echo "        $recording (the recording)"
-    echo "        $out/run-report.txt (the capture's report)"
-    echo "        $out/recording-info.txt (caphub info of the recording)"
-    echo "        $out/preview/ ($(ls "$out/preview" | wc -l) preview frames, PNG)"
-    echo "        $out/exports/capture.bvh, $out/exports/capture.glb (the exports)"
+    echo "the hub for a browser: $caphub serve --board $board --state-dir $out/state \\"
+    echo "    --recordings $out/recordings     then open http://127.0.0.1:8080/"
     ;;
 test)
     preset=${2:-debug}

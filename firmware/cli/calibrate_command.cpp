@@ -19,6 +19,7 @@
 #include "firmware/cli/data_dir.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/stepped_capture.h"
+#include "firmware/sensor_calibration_steps.h"
 #include "fusion/calibration/accel_six_position.h"
 #include "fusion/calibration/ellipsoid_fit.h"
 #include "fusion/calibration/gyro_bias.h"
@@ -43,36 +44,12 @@ struct CalibrateOptions {
     std::uint64_t seed = 1;
 };
 
-// What each board sensor delivered during the calibration.
-struct Streams {
-    std::vector<std::vector<Vec3d>> gyr;
-    std::vector<std::vector<Vec3d>> acc;
-    std::vector<std::vector<Vec3d>> mag;     // fresh magnetometer readings only
-    std::vector<std::vector<Vec3d>> magAcc;  // the accelerometer reading beside each of them
-    std::vector<double> rateHz;
+// What each board sensor delivered during the calibration; on a virtual suit also each simulated
+// part's true errors.
+struct Streams : CalibrationSamples {
     bool virtualSuit = false;
-    std::vector<bs::ImuConstants> truth;  // virtual suit: each simulated part's true errors
-
-    explicit Streams(const board::Board& b)
-        : gyr(b.sensors.size()),
-          acc(b.sensors.size()),
-          mag(b.sensors.size()),
-          magAcc(b.sensors.size()) {
-        for (const auto& s : b.sensors) {
-            rateHz.push_back(s.achievedOdrHz);
-        }
-    }
-
-    void add(const SensorSample& s) {
-        const auto i = static_cast<std::size_t>(s.sensor);
-        gyr[i].push_back(s.sample.gyrRadps.cast<double>());
-        acc[i].push_back(s.sample.accMps2.cast<double>());
-        if ((s.sample.flags & hal::ImuSample::kMagFresh) != 0 &&
-            (s.sample.flags & hal::ImuSample::kMagOverflow) == 0) {
-            mag[i].push_back(s.sample.magUt.cast<double>());
-            magAcc[i].push_back(s.sample.accMps2.cast<double>());
-        }
-    }
+    std::vector<bs::ImuConstants> truth;
+    using CalibrationSamples::CalibrationSamples;
 };
 
 double defaultDurationS(Kind k, const bs::ScriptTiming& timing) {
@@ -172,54 +149,18 @@ Eigen::Matrix3d rotationOf(const Eigen::Matrix3d& m) {
     return svd.matrixU() * svd.matrixV().transpose();
 }
 
-// The accelerometer and gyroscope axes of one sensor from its held positions and the turns
-// between them; with too few positions for the axes, the six-position per-axis calibration.
-// Prints the sensor's row; returns why it failed, or nothing.
-std::string calibrateAxes(const std::string& name, const Streams& st, std::size_t i,
-                          fusion::SensorCalibration& cal) {
-    const auto held = fusion::findHeldPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
-    if (!held) {
-        return held.error().message;
+// The accelerometer and gyroscope axes of one sensor (sensor_calibration_steps.h). Prints the
+// sensor's row; returns why it failed, or nothing.
+std::string printAxes(const std::string& name, const Streams& st, std::size_t i,
+                      fusion::SensorCalibration& cal) {
+    const auto r = calibrateAxes(st, i, cal);
+    if (!r) {
+        return r.error().message;
     }
-    std::vector<Vec3d> means;
-    for (const auto& h : *held) {
-        means.push_back(h.meanAccMps2);
-    }
-    fusion::AccelAxesResult acc;
-    std::optional<fusion::GyroAxesResult> gyro;
-    if (static_cast<int>(means.size()) >= fusion::AccelAxesParams{}.minPositions) {
-        auto a = fusion::calibrateAccelAxes(means);
-        if (!a) {
-            return a.error().message;
-        }
-        acc = *a;
-        auto g = fusion::calibrateGyroAxes(st.gyr[i], st.rateHz[i], *held, acc);
-        if (!g) {
-            return g.error().message;
-        }
-        gyro = *g;
-    } else {
-        auto six = fusion::findSixPositions(st.acc[i], st.gyr[i], st.rateHz[i]);
-        if (!six) {
-            return fmt::format("{} held positions (nine or more give the axes); {}", means.size(),
-                               six.error().message);
-        }
-        auto r = fusion::calibrateAccelSixPosition(*six);
-        if (!r) {
-            return r.error().message;
-        }
-        acc.offsetMps2 = r->offsetMps2;
-        acc.matrix = r->scale.cwiseInverse().asDiagonal();
-        acc.residualMps2 = r->residualMps2;
-        acc.positions = 6;
-    }
-    cal.hasAccel = true;
-    cal.accOffsetMps2 = acc.offsetMps2;
-    cal.accMatrix = acc.matrix;
-    cal.hasGyroAxes = gyro.has_value();
-    cal.gyroMatrix = gyro ? gyro->matrix : Eigen::Matrix3d::Identity();
+    const fusion::AccelAxesResult& acc = r->acc;
+    const std::optional<fusion::GyroAxesResult>& gyro = r->gyro;
     fmt::print(
-        "{:<11} {:>4} {:>29} {:>7.3f} {:>9.4f} {:>7} {:>13}", name, means.size(),
+        "{:<11} {:>4} {:>29} {:>7.3f} {:>9.4f} {:>7} {:>13}", name, r->heldPositions,
         vec(acc.offsetMps2, 1.0, 4), 100.0 * fusion::axisDeparture(acc.matrix), acc.residualMps2,
         gyro ? fmt::format("{:.3f}", 100.0 * fusion::axisDeparture(gyro->matrix)) : "-",
         gyro ? fmt::format("{:.2f} -> {:.2f}", gyro->uncalibratedDeg, gyro->residualDeg) : "-");
@@ -238,33 +179,16 @@ std::string calibrateAxes(const std::string& name, const Streams& st, std::size_
     return {};
 }
 
-// The magnetometer's hard and soft iron and, when the accelerometer is calibrated already, its
-// alignment to the accelerometer's frame (folded into the soft-iron matrix). Prints the row.
-std::string calibrateMag(const std::string& name, const Streams& st, std::size_t i,
-                         fusion::SensorCalibration& cal) {
-    const auto r = fusion::fitEllipsoid(st.mag[i]);
-    if (!r) {
-        return r.error().message;
+// The magnetometer's hard and soft iron and its alignment (sensor_calibration_steps.h). Prints
+// the row.
+std::string printMag(const std::string& name, const Streams& st, std::size_t i,
+                     fusion::SensorCalibration& cal) {
+    const auto result = calibrateMagnetometer(st, i, cal);
+    if (!result) {
+        return result.error().message;
     }
-    std::optional<fusion::MagAlignResult> align;
-    if (cal.hasAccel) {
-        std::vector<Vec3d> acc;
-        std::vector<Vec3d> mag;
-        for (std::size_t k = 0; k < st.mag[i].size(); ++k) {
-            acc.push_back(cal.accMatrix * (st.magAcc[i][k] - cal.accOffsetMps2));
-            mag.push_back(r->softIron * (st.mag[i][k] - r->hardIronUt));
-        }
-        auto a = fusion::alignMagToAccel(acc, mag);
-        if (!a) {
-            return a.error().message;
-        }
-        align = *a;
-    }
-    cal.hasMag = true;
-    cal.magHardIronUt = r->hardIronUt;
-    cal.magSoftIron = align ? Eigen::Matrix3d(align->rotation * r->softIron) : r->softIron;
-    cal.magQualityPct = r->qualityPct;
-    cal.magCoverage = r->coverage;
+    const fusion::EllipsoidFitResult* r = &result->fit;
+    const std::optional<fusion::MagAlignResult>& align = result->align;
     fmt::print(
         "{:<11} {:>8} {:>26} {:>9.2f} {:>8.2f} {:>9.2f} {:>9} {:>14}", name, st.mag[i].size(),
         vec(r->hardIronUt, 1.0, 2), r->fieldNormUt, r->qualityPct, r->coverage,
@@ -319,13 +243,11 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
         std::string failure;
         switch (kind) {
             case Kind::Gyro: {
-                const auto r = fusion::estimateGyroBias(st.gyr[i]);
+                const auto r = calibrateGyroBias(st, i, cal);
                 if (!r) {
                     failure = r.error().message;
                     break;
                 }
-                cal.hasGyro = true;
-                cal.gyroBiasRadS = r->biasRadS;
                 fmt::print("{:<11} {:>8} {:>26} {:>9.3f}", name, r->samples,
                            vec(r->biasRadS, kRadToDeg, 3), r->stdRadS.maxCoeff() * kRadToDeg);
                 if (truth) {
@@ -336,10 +258,10 @@ int calibrateAll(Kind kind, const board::Board& b, const Streams& st, Calibratio
                 break;
             }
             case Kind::Accel:
-                failure = calibrateAxes(name, st, i, cal);
+                failure = printAxes(name, st, i, cal);
                 break;
             case Kind::Mag:
-                failure = calibrateMag(name, st, i, cal);
+                failure = printMag(name, st, i, cal);
                 break;
         }
         if (!failure.empty()) {

@@ -97,6 +97,9 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
                                        o.profile);
         }
     }
+    if (s.sim && o.wrapSources) {
+        sources = o.wrapSources(std::move(sources));
+    }
     auto suit = s.sim ? board::sim::buildVirtualSuit(b, *s.clock, sources)
                       : board::openLinuxSuit(b, *s.clock);
     if (!suit) {

@@ -36,6 +36,9 @@ struct CaptureSetupOptions {
     double holdS = 0;
     // A sensor calibration file (empty: none).
     std::string calibration;
+    // Virtual suit: wraps the sources it is built with (the guided sensor calibration of
+    // `caphub serve` plays its scripted motions through them); none: as they are.
+    std::function<board::sim::SourceFactory(board::sim::SourceFactory)> wrapSources;
 };
 
 struct CaptureSetup {

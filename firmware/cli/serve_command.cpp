@@ -17,6 +17,9 @@
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/serve/auth.h"
+#include "firmware/serve/calibration_motion.h"
+#include "firmware/serve/sample_tap.h"
+#include "firmware/serve/sensor_calibration_session.h"
 #include "firmware/serve/web_server.h"
 #include "render/sinks.h"
 
@@ -47,6 +50,9 @@ struct ServeOptions {
     std::string statusFile;
     int threads = 24;
     int maxStreams = 12;
+    // Virtual suit: the subject first holds this pose (tpose, npose) for leadInS seconds.
+    std::string leadIn;
+    double leadInS = 8;
 };
 
 // $CAPHUB_STATE_DIR; /var/lib/caphub when it is a folder this user may write (the service's);
@@ -136,12 +142,32 @@ int runServe(const ServeOptions& o) {
     }
     const board::Board& b = *loaded;
     CaptureSetupOptions so = o.suit;
+    if (!o.leadIn.empty()) {
+        if (o.leadIn != "tpose" && o.leadIn != "npose") {
+            fmt::print(stderr, "caphub serve: --lead-in: expected tpose or npose, got '{}'\n",
+                       o.leadIn);
+            return kExitUsage;
+        }
+        so.leadInPose =
+            o.leadIn == "tpose" ? body::ReferencePoseKind::T : body::ReferencePoseKind::N;
+        so.holdS = o.leadInS;
+    }
     so.calibration = o.calibration;
     if (so.calibration.empty()) {
         // The sensor calibration kept on the hub is applied at every start.
         std::error_code ec;
         if (const fs::path kept = stateDir / "calibration.toml"; fs::is_regular_file(kept, ec)) {
             so.calibration = kept.string();
+        }
+    }
+    // The guided sensor calibration: on the virtual suit it plays the calibration motions.
+    std::shared_ptr<serve::CalibrationMotion> motion;
+    if (board::allBusesSimulated(b)) {
+        if (const auto profile = board::sim::parseErrorProfile(so.profile)) {
+            motion = std::make_shared<serve::CalibrationMotion>(b, *profile, so.seed);
+            so.wrapSources = [motion](board::sim::SourceFactory inner) {
+                return motion->wrap(std::move(inner));
+            };
         }
     }
     auto setup = buildCaptureSetup(b, so);
@@ -174,7 +200,11 @@ int runServe(const ServeOptions& o) {
             preview.reset();
         }
     }
+    serve::SampleTap tap;
+    ho.stages.push_back(&tap);
     Hub hub(b, *setup->clock, *setup->suit, std::move(ho));
+    serve::SensorCalibrationSession calibration(b, *setup->clock, tap, motion,
+                                                stateDir / "calibration.toml", so.calibration);
     signals.arm(hub.capture());
     hub.start(durationFromSeconds(o.durationS));
 
@@ -186,6 +216,7 @@ int runServe(const ServeOptions& o) {
     wo.webRoot = webRoot;
     wo.version = versionLine();
     wo.sensorCalibration = so.calibration;
+    wo.calibrationSession = &calibration;
     wo.preview = preview;
     wo.threads = o.threads;
     wo.maxStreams = o.maxStreams;
@@ -248,6 +279,12 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     addVirtualSuitOptions(*cmd, o->suit);
+    cmd->add_option("--lead-in", o->leadIn,
+                    "Virtual suit: the subject first holds this pose (tpose, npose), for a body "
+                    "calibration at the start");
+    cmd->add_option("--lead-in-s", o->leadInS, "Virtual suit: how long the lead-in pose is held")
+        ->check(CLI::Range(1.0, 120.0))
+        ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (default: calibration.toml in the state folder, "
                     "when there is one)");

@@ -18,6 +18,8 @@
 
 namespace caphub::firmware::serve {
 
+class SensorCalibrationSession;
+
 struct WebOptions {
     std::string host = "127.0.0.1";  // anything else needs a password (docs/serve.md)
     int port = 8080;                 // 0: any free port (see WebServer::port())
@@ -27,6 +29,8 @@ struct WebOptions {
     std::filesystem::path threeRoot = "/usr/share/javascript/three";  // Debian's libjs-three
     std::string version;
     std::string sensorCalibration;  // the calibration file applied (empty: none), for the state
+    // The guided sensor calibration (null: not offered). Not owned.
+    SensorCalibrationSession* calibrationSession = nullptr;
     // Bounds: HTTP worker threads; of them at most maxStreams held by streams (events, poses,
     // MJPEG) at once, so that requests are always served; request bodies; socket timeouts. One
     // request per connection (no keep-alive: an idle connection would hold a thread).

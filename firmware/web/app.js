@@ -117,9 +117,7 @@ function showState(s) {
   const lat = s.latency_ms ? `sample p50 ${fmt(s.latency_ms.p50, 2)} / p99 ${fmt(s.latency_ms.p99, 2)} ms` : '';
   const pl = s.pose_latency_ms ? `; pose p50 ${fmt(s.pose_latency_ms.p50, 2)} / p99 ${fmt(s.pose_latency_ms.p99, 2)} ms` : '';
   $('latency').textContent = lat + pl;
-  $('sensor-calibration').textContent = s.sensor_calibration
-    ? `sensor calibration: ${s.sensor_calibration}`
-    : 'sensor calibration: none (caphub calibrate gyro|accel|mag --file STATE_DIR/calibration.toml, then restart)';
+  showSensorCalibration(s);
 
   if (s.take) {
     const r = s.recording || {};
@@ -168,6 +166,44 @@ action('calibrate', () => {
   return call('POST', '/api/calibrate', { pose: $('cal-pose').value, countdown_s: t, n_countdown_s: t + 8 });
 });
 action('heading-reset', () => call('POST', '/api/heading-reset', {}));
+
+// ---- sensor calibration -------------------------------------------------------------------
+
+const kindText = { gyro: 'gyroscopes', accel: 'accelerometers', mag: 'magnetometers' };
+
+function showSensorCalibration(s) {
+  const c = s.sensor_calibration_session || {};
+  const inForce = s.sensor_calibration ? `in force: ${s.sensor_calibration}` : 'in force: none (nominal sensors)';
+  const saved = c.saved && c.saved !== s.sensor_calibration ? `; saved ${c.saved}, applied ${c.applies}` :
+    (c.saved ? `; updated, applied ${c.applies}` : '');
+  $('sensor-calibration').textContent = `sensor calibration ${inForce}${saved}`;
+  const p = c.procedure;
+  for (const id of ['scal-gyro', 'scal-accel', 'scal-mag']) $(id).disabled = !!c.running;
+  $('scal-cancel').disabled = !c.running;
+  if (!p) {
+    $('scal-instruction').textContent = c.virtual_suit ? 'Virtual suit: the subject does each motion when asked.' : '';
+    return;
+  }
+  $('scal-instruction').textContent = `${kindText[p.kind] || p.kind}: ${p.instruction}`;
+  $('scal-step').textContent = p.step ? `${p.stage} - ${p.step}` : p.stage;
+  $('scal-progress').value = p.progress || 0;
+  const r = p.result;
+  if (!r) {
+    $('scal-result').textContent = '';
+    return;
+  }
+  const q = r.quality || {};
+  const failed = (r.sensors || []).filter((x) => !x.ok).map((x) => `${x.name}: ${x.error}`);
+  $('scal-result').textContent = `${r.calibrated} of ${r.sensors_total} sensors calibrated; quality: ${q.figure} ` +
+    `${fmt(q.value, 3)} ${q.unit}${q.coverage !== undefined ? `, coverage ${fmt(100 * q.coverage, 0)} %` : ''}` +
+    (failed.length ? `; not calibrated: ${failed.join('; ')}` : '');
+}
+
+const startSensorCalibration = (kind, extra = {}) => call('POST', '/api/sensor-calibration', { kind, ...extra });
+action('scal-gyro', () => startSensorCalibration('gyro'));
+action('scal-accel', () => startSensorCalibration('accel', { positions: Number($('scal-positions').value) }));
+action('scal-mag', () => startSensorCalibration('mag'));
+action('scal-cancel', () => call('POST', '/api/sensor-calibration/cancel', {}));
 $('show-preview').addEventListener('change', () => {
   const img = $('preview');
   img.hidden = !$('show-preview').checked;

@@ -30,9 +30,13 @@ def fail(message):
 
 
 def wait_for(what, predicate, timeout=DEADLINE_S, interval=0.2):
+    from selenium.common.exceptions import StaleElementReferenceException
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        value = predicate()
+        try:
+            value = predicate()
+        except StaleElementReferenceException:
+            value = None  # the page redrew what was found (the take list): look again
         if value:
             return value
         time.sleep(interval)

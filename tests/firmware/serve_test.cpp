@@ -3,13 +3,17 @@
 // exports downloaded and parsed, deletion with confirmation; and its security: no session or no
 // CSRF token -> 401/403 with nothing changed, downloads only from the recordings folder, no
 // network listening without a password, and 50 concurrent clients all served while the capture
-// loses no sample.
+// loses no sample; the guided sensor calibration through the API on the virtual suit, saved in
+// the state folder and applied at the next start of `caphub serve`.
 // clang-format off
 // Before <httplib.h>: it includes <resolv.h>, whose `_res` macro breaks Eigen's headers after it.
 #include "firmware/serve/web_server.h"
 // clang-format on
 
+#include <array>
 #include <atomic>
+#include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -23,6 +27,7 @@
 #include "board/loader.h"
 #include "board/sim/bvh.h"
 #include "board/sim/virtual_suit.h"
+#include "firmware/calibration_file.h"
 #include "firmware/serve/auth.h"
 #include "firmware/serve/takes.h"
 #include "tests/firmware/cli_run.h"
@@ -554,6 +559,162 @@ TEST(ServeCli, RefusesNetworkListeningWithoutAPasswordAndABadPort) {
     EXPECT_TRUE(hasPassword(state));
     EXPECT_TRUE(checkPassword(state, "correct horse"));
     EXPECT_FALSE(checkPassword(state, "correct horse "));
+}
+
+// `caphub serve` in the background, on a free port: its pid and port from its first lines.
+struct ServeProcess {
+    FILE* pipe = nullptr;
+    int pid = -1;
+    int port = -1;
+    std::string firstLine;
+
+    explicit ServeProcess(const std::string& args) {
+        pipe = popen(("sh -c 'echo $$; exec " + std::string(CAPHUB_BINARY) + " serve " + args +
+                      " --listen 127.0.0.1:0' 2>&1")
+                         .c_str(),
+                     "r");
+        if (pipe == nullptr) {
+            return;
+        }
+        std::array<char, 4096> line{};
+        if (fgets(line.data(), line.size(), pipe) != nullptr) {
+            pid = std::atoi(line.data());
+        }
+        // The URL line (warnings may come first).
+        while (fgets(line.data(), line.size(), pipe) != nullptr) {
+            firstLine = line.data();
+            const auto at = firstLine.find("http://127.0.0.1:");
+            if (at != std::string::npos) {
+                port = std::atoi(firstLine.c_str() + at + 17);
+                break;
+            }
+        }
+    }
+    // SIGTERM, then the rest of its output.
+    std::string stop() {
+        std::string rest;
+        if (pipe == nullptr) {
+            return rest;
+        }
+        if (pid > 0) {
+            ::kill(pid, SIGTERM);
+        }
+        std::array<char, 4096> buf{};
+        std::size_t n = 0;
+        while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) {
+            rest.append(buf.data(), n);
+        }
+        pclose(pipe);
+        pipe = nullptr;
+        return rest;
+    }
+    ~ServeProcess() { (void)stop(); }
+};
+
+// Waits (at most 5 minutes of real time: a debug or sanitizer build computes slowly on a loaded
+// machine) until no guided procedure runs; its status, read fresh (the state document may be a
+// quarter of a second old).
+Json waitForProcedure(Session& s) {
+    Json last;
+    for (int i = 0; i < 3000; ++i) {
+        auto g = s.get("/api/sensor-calibration");
+        if (g && g->status == 200) {
+            last = Json::parse(g->body);
+            if (!last["running"].get<bool>()) {
+                break;
+            }
+        }
+        std::this_thread::sleep_for(milliseconds(100));
+    }
+    return last;
+}
+
+// Starts one guided procedure and waits for it to end; its status.
+Json runProcedure(Session& s, const Json& request) {
+    auto r = s.post("/api/sensor-calibration", request);
+    EXPECT_TRUE(r && r->status == 202) << status(r);
+    return waitForProcedure(s);
+}
+
+TEST(ServeCli, GuidedSensorCalibrationOnTheVirtualSuitIsSavedAndAppliedAtTheNextStart) {
+    const fs::path dir = fs::path(::testing::TempDir()) / "caphub-serve-sensor-calibration";
+    fs::remove_all(dir);
+    fs::create_directories(dir / "recordings");
+    const std::string args = "--board sim-upper10 --no-preview --state-dir " +
+                             (dir / "state").string() + " --recordings " +
+                             (dir / "recordings").string() + " --status-file " +
+                             (dir / "status.json").string();
+    const fs::path kept = dir / "state" / "calibration.toml";
+    {
+        ServeProcess serve(args);
+        ASSERT_GT(serve.port, 0) << serve.firstLine << serve.stop();
+        Session s(serve.port);
+        Json st = s.state();
+        EXPECT_TRUE(st["sensor_calibration"].is_null());
+        EXPECT_TRUE(st["sensor_calibration_session"]["virtual_suit"].get<bool>());
+
+        // Bad requests name the key; one procedure at a time.
+        auto bad = s.post("/api/sensor-calibration", Json{{"kind", "accel"}, {"positions", 7}});
+        EXPECT_TRUE(bad && bad->status == 400) << status(bad);
+        EXPECT_NE(status(bad).find("positions"), std::string::npos);
+        auto first = s.post("/api/sensor-calibration", Json{{"kind", "gyro"}});
+        EXPECT_TRUE(first && first->status == 202) << status(first);
+        auto busy = s.post("/api/sensor-calibration", Json{{"kind", "mag"}});
+        EXPECT_TRUE(busy && busy->status == 409) << status(busy);
+        auto cancel = s.post("/api/sensor-calibration/cancel");
+        EXPECT_TRUE(cancel && cancel->status == 200) << status(cancel);
+        EXPECT_EQ(waitForProcedure(s)["procedure"]["stage"], "cancelled");
+        EXPECT_FALSE(fs::exists(kept));
+
+        // The three procedures: the virtual subject does each motion.
+        const Json gyro = runProcedure(s, Json{{"kind", "gyro"}});
+        const Json accel = runProcedure(s, Json{{"kind", "accel"}, {"hold_s", 2}, {"move_s", 1}});
+        const Json mag = runProcedure(s, Json{{"kind", "mag"}, {"duration_s", 20}});
+        for (const Json* p : {&gyro, &accel, &mag}) {
+            const Json& proc = (*p)["procedure"];
+            EXPECT_EQ(proc["stage"], "done") << proc.dump(1);
+            EXPECT_EQ(proc["result"]["calibrated"], 10) << proc.dump(1);
+            EXPECT_EQ(proc["result"]["samples_dropped"], 0) << proc.dump(1);
+            EXPECT_EQ((*p)["saved"], kept.string());
+        }
+        // Quality: the gyroscopes' noise at rest, the accelerometers' miss of g over the six
+        // positions, the magnetometers' field-strength scatter after the fit.
+        EXPECT_LT(gyro["procedure"]["result"]["quality"]["value"].get<double>(), 0.5);
+        EXPECT_LT(accel["procedure"]["result"]["quality"]["value"].get<double>(), 0.05);
+        EXPECT_EQ(accel["procedure"]["result"]["sensors"][0]["positions"], 6);
+        EXPECT_LT(mag["procedure"]["result"]["quality"]["value"].get<double>(), 3.0);
+        EXPECT_EQ(s.state()["sensor_calibration_session"]["applies"],
+                  "at the next start of caphub serve");
+        const std::string out = serve.stop();
+        EXPECT_NE(out.find("sensor calibration mag: 10 of 10 sensors saved"), std::string::npos)
+            << out;
+    }
+    // The file is the one `caphub calibrate` writes: each sensor has all three kinds, and the
+    // gyroscope biases are those of the same simulated parts measured by `caphub calibrate`.
+    auto set = readCalibrationFile(kept);
+    ASSERT_TRUE(set.ok()) << set.error().message;
+    ASSERT_EQ(set->size(), 10U);
+    for (const auto& [name, cal] : *set) {
+        EXPECT_TRUE(cal.hasGyro && cal.hasAccel && cal.hasMag) << name;
+    }
+    const fs::path reference = dir / "reference.toml";
+    auto ref =
+        caphub::testing::caphub("calibrate gyro --board sim-upper10 --file " + reference.string());
+    ASSERT_EQ(ref.exitCode, 0) << ref.output;
+    auto refSet = readCalibrationFile(reference);
+    ASSERT_TRUE(refSet.ok());
+    for (const auto& [name, cal] : *refSet) {
+        EXPECT_LT((cal.gyroBiasRadS - set->at(name).gyroBiasRadS).norm() * 180 / 3.14159, 0.05)
+            << name;
+    }
+
+    // The next start applies it, and says so.
+    ServeProcess again(args);
+    ASSERT_GT(again.port, 0) << again.firstLine << again.stop();
+    Session s(again.port);
+    const Json st = s.state();
+    EXPECT_EQ(st["sensor_calibration"], kept.string());
+    EXPECT_EQ(st["sensor_calibration_session"]["in_force"], kept.string());
 }
 
 }  // namespace

@@ -1,0 +1,216 @@
+// The takes: the list (each with its `caphub info` summary), one take's summary, the raw .cap,
+// exports made on demand (one at a time, with progress in the state), deletion with confirmation.
+// Every name a client sends goes through resolveTake (takes.h).
+#include <fmt/format.h>
+
+#include "firmware/export/export.h"
+#include "firmware/serve/takes.h"
+#include "firmware/serve/web_state.h"
+#include "hal/core/log.h"
+
+namespace caphub::firmware::serve {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* mimeOf(exporter::Format f) {
+    switch (f) {
+        case exporter::Format::Glb:
+            return "model/gltf-binary";
+        case exporter::Format::Csv:
+            return "text/csv";
+        default:
+            return "text/plain";
+    }
+}
+
+const char* extensionOf(exporter::Format f) {
+    switch (f) {
+        case exporter::Format::Bvh:
+            return ".bvh";
+        case exporter::Format::Glb:
+            return ".glb";
+        case exporter::Format::Csv:
+            return ".csv";
+        case exporter::Format::Sto:
+            return ".sto";
+    }
+    return ".out";
+}
+
+}  // namespace
+
+Result<RecordingSummary> WebServer::State::summaryOf(const std::string& name, std::uint64_t bytes,
+                                                     std::int64_t modified) {
+    {
+        std::lock_guard lock(summaryMutex);
+        auto it = summaries.find(name);
+        if (it != summaries.end() && it->second.bytes == bytes && it->second.modified == modified) {
+            return it->second.summary;
+        }
+    }
+    auto made = summarizeRecording((options.recordings / name).string());
+    if (made) {
+        std::lock_guard lock(summaryMutex);
+        summaries[name] = {bytes, modified, *made};
+    }
+    return made;
+}
+
+void WebServer::State::takeRoutes() {
+    State* s = this;
+    server.Get("/api/takes", guarded([s](const httplib::Request&, httplib::Response& res) {
+                   const std::string recording = s->currentTakeName();
+                   Json list = Json::array();
+                   for (const auto& t : listTakes(s->options.recordings)) {
+                       Json j{{"file", t.name},
+                              {"bytes", t.bytes},
+                              {"modified", t.modifiedUnixS},
+                              {"recording", t.name == recording}};
+                       if (t.name != recording) {
+                           const auto summary = s->summaryOf(t.name, t.bytes, t.modifiedUnixS);
+                           if (summary) {
+                               j["duration_s"] = summary->durationS;
+                               j["records"] = summary->records;
+                               j["poses"] = summary->poses;
+                               j["markers"] = summary->markers;
+                               j["damaged_ranges"] = summary->damagedRanges;
+                               j["info"] = summary->text;
+                           } else {
+                               j["summary_error"] = summary.error().message;
+                           }
+                       }
+                       list.push_back(std::move(j));
+                   }
+                   reply(res, 200, Json{{"takes", list}});
+               }));
+    server.Get(R"(/api/takes/([^/]+)/raw)",
+               takeHandler(false, [](const httplib::Request&, httplib::Response& res,
+                                     const std::string& name, const fs::path& path) {
+                   streamFile(res, path, "application/octet-stream", name, false);
+               }));
+    server.Get(R"(/api/takes/([^/]+)/export)",
+               takeHandler(false, [s](const httplib::Request& req, httplib::Response& res,
+                                      const std::string& name, const fs::path& path) {
+                   exporter::ExportOptions o;
+                   const auto format = exporter::parseFormat(req.get_param_value("format"));
+                   if (!format) {
+                       fail(res, 400, "format: expected bvh, glb, csv or sto");
+                       return;
+                   }
+                   o.format = *format;
+                   std::string error;
+                   o.track.rateHz = numberParam(req, "rate", error);
+                   o.track.fromS = numberParam(req, "from", error);
+                   o.track.toS = numberParam(req, "to", error);
+                   if (o.track.rateHz && *o.track.rateHz <= 0) {
+                       error = "rate: expected a number > 0";
+                   }
+                   if (req.has_param("names")) {
+                       // Only the built-in maps: a map file would be a path on the hub.
+                       o.names = req.get_param_value("names");
+                       if (o.names != "hanim" && o.names != "cmu" && o.names != "unity") {
+                           error = "names: expected hanim, cmu or unity";
+                       }
+                   }
+                   if (req.has_param("units")) {
+                       const std::string u = req.get_param_value("units");
+                       if (u != "m" && u != "cm") {
+                           error = "units: expected m or cm";
+                       }
+                       o.unitsPerM = u == "cm" ? 100 : 1;
+                   }
+                   o.referenceFrame = req.get_param_value("reference_frame") == "1";
+                   if (o.referenceFrame && o.format != exporter::Format::Bvh) {
+                       error = "reference_frame is for bvh only";
+                   }
+                   if (!error.empty()) {
+                       fail(res, 400, error);
+                       return;
+                   }
+                   std::unique_lock lock(s->exportMutex, std::defer_lock);
+                   if (!lock.try_lock_for(std::chrono::seconds(30))) {
+                       res.set_header("Retry-After", "10");
+                       fail(res, 503, "another export is running; try again");
+                       return;
+                   }
+                   const fs::path dir = s->options.stateDir / "exports";
+                   std::error_code ec;
+                   fs::create_directories(dir, ec);
+                   const fs::path out = dir / (randomToken().substr(0, 16) + extensionOf(o.format));
+                   {
+                       std::lock_guard g(s->exportStatusMutex);
+                       s->exportStatus = {{"take", name},
+                                          {"format", std::string(formatName(o.format))},
+                                          {"stage", "reading"},
+                                          {"fraction", 0.0}};
+                   }
+                   auto summary = exporter::exportRecording(
+                       path.string(), out.string(), o, [s](std::string_view stage, double f) {
+                           std::lock_guard g(s->exportStatusMutex);
+                           s->exportStatus["stage"] = std::string(stage);
+                           s->exportStatus["fraction"] = f;
+                       });
+                   {
+                       std::lock_guard g(s->exportStatusMutex);
+                       s->exportStatus = nullptr;
+                   }
+                   lock.unlock();
+                   if (!summary) {
+                       fs::remove(out, ec);
+                       failWith(res, summary.error());
+                       return;
+                   }
+                   res.set_header("X-Caphub-Frames", std::to_string(summary->frames));
+                   streamFile(res, out, mimeOf(o.format),
+                              fs::path(name).stem().string() + extensionOf(o.format), true);
+               }));
+    server.Get(R"(/api/takes/([^/]+))",
+               takeHandler(false, [](const httplib::Request&, httplib::Response& res,
+                                     const std::string&, const fs::path& path) {
+                   auto summary = summarizeRecording(path.string());
+                   if (!summary) {
+                       fail(res, 422, summary.error().message);
+                       return;
+                   }
+                   reply(res, 200,
+                         Json{{"file", path.filename().string()},
+                              {"duration_s", summary->durationS},
+                              {"records", summary->records},
+                              {"poses", summary->poses},
+                              {"markers", summary->markers},
+                              {"info", summary->text}});
+               }));
+    server.Post(
+        R"(/api/takes/([^/]+)/delete)",
+        takeHandler(true, [s](const httplib::Request& req, httplib::Response& res,
+                              const std::string& name, const fs::path& path) {
+            auto b = s->parseBody(req, res);
+            if (!b) {
+                return;
+            }
+            const Json confirm = b->value("confirm", Json());
+            if (!confirm.is_string() || confirm.get<std::string>() != name) {
+                fail(res, 400, "to delete a take, give its file name again as \"confirm\"");
+                return;
+            }
+            if (name == s->currentTakeName()) {
+                fail(res, 409, "the take is being recorded: stop it first");
+                return;
+            }
+            std::error_code ec;
+            if (!fs::remove(path, ec) || ec) {
+                fail(res, 500, fmt::format("cannot delete '{}': {}", name, ec.message()));
+                return;
+            }
+            {
+                std::lock_guard lock(s->summaryMutex);
+                s->summaries.erase(name);
+            }
+            log::logger(log::Category::Firmware).info("take deleted from the web: {}", name);
+            reply(res, 200, Json{{"deleted", name}});
+        }));
+}
+
+}  // namespace caphub::firmware::serve
