@@ -29,7 +29,7 @@ run)
     cmake --preset release -DCAPHUB_BUILD_TESTS=OFF -DCAPHUB_BUILD_BENCHMARKS=OFF >/dev/null
     cmake --build --preset release --target caphub
     out="$root/out"
-    rm -rf "$out/recordings" "$out/exports" "$out/state"
+    rm -rf "$out/recordings" "$out/exports" "$out/state" "$out/preview"
     mkdir -p "$out/recordings" "$out/exports"
     caphub=build/release/bin/caphub
     board=board/sim-suit.toml

@@ -26,12 +26,14 @@ import time
 class Hub:
     """`caphub serve` in the background, on a free port of 127.0.0.1."""
 
-    def __init__(self, caphub, board, out, log, extra=()):
+    def __init__(self, caphub, board, out, log, extra=(), preview=None):
         self.log = open(log, "w")
+        # The preview: PNGs of the hub's rendered view at 2 frames a second, or none.
+        shown = ["--preview", preview, "--preview-fps", "2"] if preview else ["--no-preview"]
         self.proc = subprocess.Popen(
             [caphub, "serve", "--board", board, "--listen", "127.0.0.1:0",
              "--state-dir", f"{out}/state", "--recordings", f"{out}/recordings",
-             "--status-file", f"{out}/status.json", "--no-preview", *extra],
+             "--status-file", f"{out}/status.json", *shown, *extra],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.lines = []
         port = []
@@ -138,7 +140,8 @@ def main():
     hub.stop()
 
     print("2. body calibration (caphub serve again: it applies the sensor calibration)")
-    hub = Hub(caphub, board, out, f"{out}/serve-2.log", ["--lead-in", "tpose", "--lead-in-s", "8"])
+    hub = Hub(caphub, board, out, f"{out}/serve-2.log", ["--lead-in", "tpose", "--lead-in-s", "8"],
+              preview=f"png:{out}/preview")
     state = hub.call("GET", "/api/state")
     print(f"  sensor calibration in force: {state['sensor_calibration']}")
     hub.call("POST", "/api/calibrate", {"pose": "tpose", "countdown_s": 0.5})
@@ -179,6 +182,10 @@ def main():
         print(f"        {out}/recordings/{file} (a take)")
     for path in downloads:
         print(f"        {path} (downloaded export)")
+    frames = sorted(os.listdir(f"{out}/preview")) if os.path.isdir(f"{out}/preview") else []
+    if frames:
+        print(f"        {out}/preview/ ({len(frames)} PNGs of the hub's preview, "
+              f"{frames[0]} .. {frames[-1]})")
     print(f"        {out}/serve-1.log, {out}/serve-2.log (what the hub printed)")
 
 
