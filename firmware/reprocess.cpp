@@ -149,7 +149,8 @@ fusion::FilterParams paramsOf(const board::SensorConfig& s) {
 // again there, as in the capture), each run smoothed over its whole length.
 SmoothedOrientations smoothAll(const board::Board& board, const SourceRecording& source,
                                const FusionStage::Calibrations& calibrations,
-                               const ReprocessOptions& o) {
+                               const std::vector<Eigen::Vector3f>& aid, const ReprocessOptions& o) {
+    std::size_t sampleIndex = 0;
     const std::size_t n = board.sensors.size();
     struct Run {
         std::vector<fusion::SmootherSample> samples;
@@ -173,6 +174,7 @@ SmoothedOrientations smoothAll(const board::Board& board, const SourceRecording&
         if (it.type != cap::RecordType::RawSample) {
             continue;
         }
+        const std::size_t k = sampleIndex++;
         const hal::ImuSample& in = it.sample;
         fusion::ImuSample raw;
         raw.gyrRadS = in.gyrRadps.cast<double>();
@@ -188,6 +190,9 @@ SmoothedOrientations smoothAll(const board::Board& board, const SourceRecording&
         s.magFresh = (in.flags & hal::ImuSample::kMagFresh) != 0 &&
                      (in.flags & hal::ImuSample::kMagOverflow) == 0;
         s.gyrClipped = (in.flags & hal::ImuSample::kGyrSaturated) != 0;
+        if (k < aid.size()) {
+            s.linAccEnu = aid[k].cast<double>();
+        }
         runs[u].back().samples.push_back(s);
         runs[u].back().tNs.push_back(toNs(in.t));
     }
@@ -412,97 +417,136 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
         }
     }
 
-    ForwardingSink sink(out);
-    FusionStage fusion(board, &sink, calibrations);
-    SimulatedClock clock(t0);
-    BodyStage body(board, fusion, &sink, clock, bodyOptions);
-    if (o.feed != nullptr) {
-        body.publishTo(*o.feed);
-    }
-    Pipeline pipeline;
-    pipeline.add(fusion);
-    pipeline.add(body);
-    for (auto* s : o.stages) {
-        pipeline.add(*s);
-    }
+    // One pass of the recording through fusion and body: what `caphub run` did, with the
+    // choices above. `sink` null: nothing recorded (the smoother's first pass); `beforeSample`:
+    // called before each raw sample goes in.
+    struct Pass {
+        Pass(const board::Board& b, RecordSink* sink, const FusionStage::Calibrations& cals,
+             Timestamp start, const BodyStage::Options& bo)
+            : fusion(b, sink, cals), clock(start), body(b, fusion, sink, clock, bo) {
+            pipeline.add(fusion);
+            pipeline.add(body);
+        }
+        FusionStage fusion;
+        SimulatedClock clock;
+        BodyStage body;
+        Pipeline pipeline;
+    };
+    const auto run = [&](Pass& pass, ReprocessSink* sinkOut, const char* stage,
+                         const std::function<void(std::size_t)>& beforeSample) {
+        bool first = true;
+        std::size_t index = 0;
+        std::size_t sampleIndex = 0;
+        const std::size_t total = source.items.size();
+        for (const auto& it : source.items) {
+            ++index;
+            if (o.progress && (index & 0xFFF) == 0) {
+                o.progress(stage, static_cast<double>(index) / static_cast<double>(total));
+            }
+            pass.clock.advanceTo(it.t);
+            switch (it.type) {
+                case cap::RecordType::RawSample: {
+                    if (sinkOut != nullptr) {
+                        sinkOut->rawSample(it.sensor, it.sample);
+                    }
+                    if (beforeSample) {
+                        beforeSample(sampleIndex);
+                    }
+                    ++sampleIndex;
+                    pass.pipeline.sample({it.sensor, it.sample});
+                    if (first) {
+                        first = false;
+                        if (twoPose) {
+                            pass.body.tracker().startTwoPoseCalibration(
+                                t0 + durationFromSeconds(twoPose->first),
+                                t0 + durationFromSeconds(twoPose->second));
+                        }
+                    }
+                    break;
+                }
+                case cap::RecordType::Event: {
+                    if (it.kind == cap::EventKind::Calibrated ||
+                        it.kind == cap::EventKind::HeadingReset) {
+                        break;  // the body stage records its own
+                    }
+                    if (sinkOut != nullptr) {
+                        sinkOut->event(it.t, it.kind, it.sensor, it.error, it.text);
+                    }
+                    if (const auto k = runtimeKind(it.kind)) {
+                        pass.pipeline.event({*k, it.sensor, it.t, it.error});
+                    }
+                    if (it.kind == cap::EventKind::Command) {
+                        const BodyCommand c = parseCommand(it.text);
+                        body::BodyTracker& tracker = pass.body.tracker();
+                        if (c.kind == BodyCommand::Kind::HeadingReset) {
+                            tracker.headingResetAt(it.t);
+                        } else if (replayCommands && c.kind == BodyCommand::Kind::TPlusN) {
+                            tracker.startTwoPoseCalibration(it.t + durationFromSeconds(c.aS),
+                                                            it.t + durationFromSeconds(c.bS));
+                        } else if (replayCommands && c.kind != BodyCommand::Kind::None) {
+                            tracker.startCalibration(c.kind == BodyCommand::Kind::TPose
+                                                         ? body::ReferencePoseKind::T
+                                                         : body::ReferencePoseKind::N,
+                                                     it.t + durationFromSeconds(c.aS));
+                        }
+                    }
+                    break;
+                }
+                case cap::RecordType::Metadata:
+                    if (sinkOut != nullptr && !isBodyCalibrationMetadata(it.text)) {
+                        sinkOut->metadata(it.t, it.text);
+                    }
+                    break;
+                case cap::RecordType::Marker:
+                    if (sinkOut != nullptr) {
+                        sinkOut->marker(it.t, it.text);
+                    }
+                    break;
+                case cap::RecordType::Orientation:
+                case cap::RecordType::Pose:
+                    break;
+            }
+        }
+        pass.pipeline.finish(pass.clock.now());
+    };
 
     SmoothedOrientations smoothed;
     if (o.smooth) {
-        smoothed = smoothAll(board, source, calibrations, o);
-        fusion.overrideOrientations(
+        // The causal pass first, for what the body told the filters (the body's acceleration at
+        // each sample): the smoother's runs are told the same.
+        std::vector<Eigen::Vector3f> aid(source.samples, Eigen::Vector3f::Zero());
+        {
+            Pass causal(board, nullptr, calibrations, t0, bodyOptions);
+            run(causal, nullptr, "causal", [&](std::size_t k) {
+                if (k < aid.size()) {
+                    aid[k] = causal.fusion.bodyAcceleration().cast<float>();
+                }
+            });
+        }
+        smoothed = smoothAll(board, source, calibrations, aid, o);
+    }
+    ForwardingSink sink(out);
+    Pass pass(board, &sink, calibrations, t0, bodyOptions);
+    if (o.feed != nullptr) {
+        pass.body.publishTo(*o.feed);
+    }
+    for (auto* st : o.stages) {
+        pass.pipeline.add(*st);
+    }
+    if (o.smooth) {
+        pass.fusion.overrideOrientations(
             [&smoothed](const SensorSample& s, const Eigen::Quaternionf& q) {
                 return smoothed.lookup(s, q);
             });
     }
-
     ReprocessSummary summary;
     summary.durationS = durationS;
-    bool first = true;
-    std::size_t index = 0;
-    const std::size_t total = source.items.size();
-    for (const auto& it : source.items) {
-        ++index;
-        if (o.progress && (index & 0xFFF) == 0) {
-            o.progress("fusion", static_cast<double>(index) / static_cast<double>(total));
-        }
-        clock.advanceTo(it.t);
-        switch (it.type) {
-            case cap::RecordType::RawSample: {
-                out.rawSample(it.sensor, it.sample);
-                pipeline.sample({it.sensor, it.sample});
-                ++summary.samples;
-                if (first) {
-                    first = false;
-                    if (twoPose) {
-                        body.tracker().startTwoPoseCalibration(
-                            t0 + durationFromSeconds(twoPose->first),
-                            t0 + durationFromSeconds(twoPose->second));
-                    }
-                }
-                break;
-            }
-            case cap::RecordType::Event: {
-                if (it.kind == cap::EventKind::Calibrated ||
-                    it.kind == cap::EventKind::HeadingReset) {
-                    break;  // the body stage records its own
-                }
-                out.event(it.t, it.kind, it.sensor, it.error, it.text);
-                if (const auto k = runtimeKind(it.kind)) {
-                    pipeline.event({*k, it.sensor, it.t, it.error});
-                }
-                if (it.kind == cap::EventKind::Command) {
-                    const BodyCommand c = parseCommand(it.text);
-                    if (c.kind == BodyCommand::Kind::HeadingReset) {
-                        body.tracker().headingResetAt(it.t);
-                    } else if (replayCommands && c.kind == BodyCommand::Kind::TPlusN) {
-                        body.tracker().startTwoPoseCalibration(it.t + durationFromSeconds(c.aS),
-                                                               it.t + durationFromSeconds(c.bS));
-                    } else if (replayCommands && c.kind != BodyCommand::Kind::None) {
-                        body.tracker().startCalibration(c.kind == BodyCommand::Kind::TPose
-                                                            ? body::ReferencePoseKind::T
-                                                            : body::ReferencePoseKind::N,
-                                                        it.t + durationFromSeconds(c.aS));
-                    }
-                }
-                break;
-            }
-            case cap::RecordType::Metadata:
-                if (!isBodyCalibrationMetadata(it.text)) {
-                    out.metadata(it.t, it.text);
-                }
-                break;
-            case cap::RecordType::Marker:
-                out.marker(it.t, it.text);
-                break;
-            case cap::RecordType::Orientation:
-            case cap::RecordType::Pose:
-                break;
-        }
-    }
-    pipeline.finish(clock.now());
+    run(pass, &out, "fusion", {});
     if (o.progress) {
         o.progress("fusion", 1.0);
     }
+    const BodyStage& body = pass.body;
+    summary.samples = source.samples;
     summary.poses = body.poses();
     summary.orientations = sink.orientations;
     summary.calibrationError = body.calibrationError();

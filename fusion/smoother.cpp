@@ -40,13 +40,15 @@ FilterState<FloatTypes> turnedAround(const FilterState<FloatTypes>& s) {
     out.bias = negated(s.bias);
     out.lastGyr = negated(s.lastGyr);
     out.accBand = negated(s.accBand);
+    out.rest.gyrLp = negated(s.rest.gyrLp);  // the rest detector's low-passed rate
     return out;
 }
 
 }  // namespace
 
 std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
-                                      const FilterParams& params, SmootherStats* stats) {
+                                      const FilterParams& params, const SmootherOptions& options,
+                                      SmootherStats* stats) {
     const std::size_t n = samples.size();
     std::vector<Quatd> out(n, Quatd::Identity());
     if (n == 0) {
@@ -55,8 +57,10 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
     // 1. Forward from power-on, as the capture ran it: only to reach a converged state (the
     // attitude and the gyroscope bias) at the end of the take.
     Filter f(params);
-    for (const SmootherSample& s : samples) {
-        feed(f, s, false);
+    std::vector<Quatd> causal(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        feed(f, samples[k], false);
+        causal[k] = quatOf(f);
     }
     // 2. Backward from there. Before sample i is fed (reversed), the filter has integrated the
     // rates of samples n-1 .. i+1: it holds the attitude at sample i.
@@ -80,7 +84,16 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
         if (fw.dot(bw) < 0) {
             bw.coeffs() = -bw.coeffs();
         }
-        out[k] = fw.slerp(0.5, bw).normalized();
+        out[k] = fw.slerp(options.backwardWeight, bw).normalized();
+        if (options.forwardHeading) {
+            // The heading (the turn about up) of the causal run, the inclination of both.
+            const Quatd d = causal[k] * out[k].conjugate();
+            Quatd twist(d.w(), 0, 0, d.z());
+            if (twist.norm() > 1e-9) {
+                twist.normalize();
+                out[k] = (twist * out[k]).normalized();
+            }
+        }
         const double deg = fw.angularDistance(bw) * 180.0 / 3.14159265358979323846;
         sumDeg += deg;
         maxDeg = std::max(maxDeg, deg);

@@ -6,6 +6,7 @@
 // per sample. The forward filter's error at a sample comes from the samples before it, the
 // backward one's from those after: their halfway rotation (slerp 0.5) averages two nearly
 // independent errors, and neither has a start-up transient (each begins where the other ended).
+// By default only the inclination is averaged, the heading is the causal run's (below).
 #pragma once
 
 #include <vector>
@@ -32,9 +33,22 @@ struct SmootherStats {
     double maxDisagreementDeg = 0;
 };
 
+struct SmootherOptions {
+    // The backward run's share of the combination (0: the forward run alone, which still starts
+    // converged: no start-up transient).
+    double backwardWeight = 0.5;
+    // Combine the inclinations only; the heading (the turn about up) is the causal run's (the
+    // first forward run, from power-on, as live). On BROAD the backward run's heading was worse
+    // than the forward one's, and a forward run started from the backward run's state inherits
+    // its heading at the start (docs/reprocess.md).
+    bool forwardHeading = true;
+};
+
 // One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the
 // samples' rate). Empty in, empty out.
 std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
-                                      const FilterParams& params, SmootherStats* stats = nullptr);
+                                      const FilterParams& params,
+                                      const SmootherOptions& options = {},
+                                      SmootherStats* stats = nullptr);
 
 }  // namespace caphub::fusion

@@ -117,13 +117,29 @@ int evaluate(const EvaluateCliOptions& c) {
         return kExitUsage;
     }
     o.measuredSkeleton = c.skeleton == "clip";
-    if (!c.calibration.empty()) {
-        auto set = readCalibrationFile(c.calibration);
+    // The sensor calibration file; "{seed}" in its name stands for each seed's own (the
+    // virtual suit's parts differ from seed to seed).
+    const auto calibrationFor =
+        [&](std::uint64_t seed) -> std::optional<FusionStage::Calibrations> {
+        std::string path = c.calibration;
+        if (const auto at = path.find("{seed}"); at != std::string::npos) {
+            path.replace(at, 6, std::to_string(seed));
+        }
+        auto set = readCalibrationFile(path);
         if (!set) {
             fmt::print(stderr, "caphub evaluate: {}\n", set.error().message);
-            return kExitUsage;
+            return std::nullopt;
         }
-        o.sensorCalibrations = calibrationsFor(b, *set, nullptr);
+        return calibrationsFor(b, *set, nullptr);
+    };
+    const std::vector<std::uint64_t> seeds =
+        c.seeds.empty() ? std::vector<std::uint64_t>{c.suit.seed} : c.seeds;
+    if (!c.calibration.empty()) {
+        for (const std::uint64_t seed : seeds) {
+            if (!calibrationFor(seed)) {
+                return kExitUsage;
+            }
+        }
     }
     // Every clip is checked before the first (long) run.
     for (const auto& path : c.bvh) {
@@ -135,12 +151,17 @@ int evaluate(const EvaluateCliOptions& c) {
 
     std::vector<EvaluateResult> results;
     std::vector<std::uint64_t> seedOf;
-    const std::vector<std::uint64_t> seeds =
-        c.seeds.empty() ? std::vector<std::uint64_t>{c.suit.seed} : c.seeds;
     for (const auto& path : c.bvh) {
         for (const std::uint64_t seed : seeds) {
             o.bvh = path;
             o.seed = seed;
+            if (!c.calibration.empty()) {
+                auto cals = calibrationFor(seed);
+                if (!cals) {
+                    return kExitUsage;
+                }
+                o.sensorCalibrations = std::move(*cals);
+            }
             auto r = evaluateClip(b, o);
             if (!r) {
                 fmt::print(stderr, "caphub evaluate: {}\n", r.error().message);

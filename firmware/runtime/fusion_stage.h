@@ -54,6 +54,10 @@ public:
     // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
     // next call. Zero (the default): unknown.
     void setBodyAcceleration(const Eigen::Vector3d& enuMps2);
+    // What the filters are told now (the latest setBodyAcceleration).
+    Eigen::Vector3d bodyAcceleration() const {
+        return Eigen::Vector3d(bodyAccEnu_.x, bodyAccEnu_.y, bodyAccEnu_.z);
+    }
     // Offline only (`caphub reprocess --smooth`): the orientation each sample gets in place of
     // its filter's (given the sample and the filter's output), e.g. a smoother's over the whole
     // take. The filters still run (their lifecycle and counters stay the same). Empty: none.
