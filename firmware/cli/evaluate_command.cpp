@@ -42,9 +42,10 @@ struct EvaluateCliOptions {
 // the means.
 std::string smoothTable(const std::vector<EvaluateResult>& results,
                         const std::vector<std::uint64_t>& seeds) {
-    std::string out = fmt::format("\n{:<34} {:>4} {:>10} {:>10} {:>8} {:>10} {:>10} {:>8}\n",
-                                  "clip (17-joint mean angle, final root drift)", "seed",
-                                  "live deg", "smooth", "change", "live m", "smooth", "change");
+    std::string out = fmt::format(
+        "\nlive against `caphub reprocess --smooth`: 17-joint mean angle error (deg), root drift "
+        "at the end (m)\n{:<34} {:>4} {:>10} {:>10} {:>8} {:>10} {:>10} {:>8}\n",
+        "clip", "seed", "live deg", "smooth", "change", "live m", "smooth", "change");
     double la = 0;
     double sa = 0;
     double ld = 0;
