@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 
 #include <fmt/format.h>
@@ -472,7 +473,9 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
                     if (sinkOut != nullptr) {
                         sinkOut->event(it.t, it.kind, it.sensor, it.error, it.text);
                     }
-                    if (const auto k = runtimeKind(it.kind)) {
+                    const auto k = runtimeKind(it.kind);
+                    if (k && it.sensor >= 0 &&
+                        static_cast<std::size_t>(it.sensor) < board.sensors.size()) {
                         pass.pipeline.event({*k, it.sensor, it.t, it.error});
                     }
                     if (it.kind == cap::EventKind::Command) {
