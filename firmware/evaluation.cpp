@@ -7,8 +7,10 @@
 #include <fmt/format.h>
 
 #include "board/sim/virtual_suit.h"
+#include "firmware/reprocess.h"
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/hub.h"
+#include "fusion/body/kinematics.h"
 #include "fusion/body/skeleton.h"
 
 namespace caphub::firmware {
@@ -81,6 +83,85 @@ private:
     std::shared_ptr<PoseQueue> queue_;
     body::PoseScorer scorer_{body::PoseScorer::RootOrigin::AtFirstFrame};
     PoseFrame frame_;
+    body::Pose pose_;
+    body::BodyTruth truth_;
+    bs::SegmentState segment_;
+};
+
+// Keeps the capture's raw samples and lifecycle events as a recording in memory (a stage after
+// the body: what `caphub run --record` would have written of them, in the same order).
+class SampleKeepingStage final : public PipelineStage {
+public:
+    void onSample(const SensorSample& s) override {
+        SourceRecording::Item it;
+        it.type = cap::RecordType::RawSample;
+        it.t = s.sample.t;
+        it.sensor = s.sensor;
+        it.sample = s.sample;
+        recording.items.push_back(it);
+        ++recording.samples;
+    }
+    void onEvent(const RuntimeEvent& e) override {
+        SourceRecording::Item it;
+        it.type = cap::RecordType::Event;
+        it.t = e.t;
+        it.sensor = e.sensor;
+        it.error = e.error;
+        switch (e.kind) {
+            case RuntimeEvent::Kind::SensorOnline:
+                it.kind = cap::EventKind::SensorOnline;
+                break;
+            case RuntimeEvent::Kind::SensorLost:
+                it.kind = cap::EventKind::SensorLost;
+                break;
+            case RuntimeEvent::Kind::SensorReset:
+                it.kind = cap::EventKind::SensorReset;
+                break;
+            case RuntimeEvent::Kind::LineSilent:
+                it.kind = cap::EventKind::LineSilent;
+                break;
+        }
+        recording.items.push_back(it);
+    }
+    SourceRecording recording;
+};
+
+// Scores the pose records a reprocess writes, as the recording holds them (joint rotations and
+// the root), against the truth at their time.
+class ScoringSink final : public ReprocessSink {
+public:
+    ScoringSink(const bs::SegmentTrajectory& trajectory, Timestamp start, std::int64_t leadInNs,
+                body::Dimensions dims)
+        : trajectory_(trajectory), start_(start), leadInNs_(leadInNs), dims_(dims) {}
+    void rawSample(int, const hal::ImuSample&) override {}
+    void orientation(int, Timestamp, const Eigen::Quaternionf&) override {}
+    void event(Timestamp, cap::EventKind, int, int, std::string_view) override {}
+    void metadata(Timestamp, std::string_view) override {}
+    void marker(Timestamp, std::string_view) override {}
+    void pose(Timestamp t, const Eigen::Vector3f& rootM, std::span<const Eigen::Quaternionf> joints,
+              std::uint32_t) override {
+        const std::int64_t tNs = toNs(t - start_);
+        if (tNs < leadInNs_) {
+            return;
+        }
+        for (int i = 0; i < body::kSegmentCount; ++i) {
+            const auto u = static_cast<std::size_t>(i);
+            trajectory_.evaluate(static_cast<board::Segment>(i), tNs, segment_);
+            truth_.qWorldSegment[u] = segment_.qWorldSegment;
+            truth_.positionM[u] = segment_.positionM;
+            pose_.qLocal[u] = joints[u].cast<double>();
+        }
+        body::worldFromLocal(pose_);
+        body::forwardKinematics(dims_, rootM.cast<double>(), pose_);
+        scorer.add(pose_, truth_);
+    }
+    body::PoseScorer scorer{body::PoseScorer::RootOrigin::AtFirstFrame};
+
+private:
+    const bs::SegmentTrajectory& trajectory_;
+    Timestamp start_;
+    std::int64_t leadInNs_;
+    body::Dimensions dims_;
     body::Pose pose_;
     body::BodyTruth truth_;
     bs::SegmentState segment_;
@@ -164,6 +245,10 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
     PoseScoringStage scoring(*clip->trajectory, start, clip->leadInNs);
     hubOptions.stages.push_back(&scoring);
+    SampleKeepingStage keeping;
+    if (o.reprocessSmooth) {
+        hubOptions.stages.push_back(&keeping);
+    }
     Hub hub(b, clock, *suit, std::move(hubOptions));
     scoring.follow(hub.poses());
     const auto wallStart = std::chrono::steady_clock::now();
@@ -200,6 +285,39 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.mountingErrorMeanDeg = m.meanDeg;
     r.mountingErrorMaxDeg = m.maxDeg;
     r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
+
+    if (o.reprocessSmooth) {
+        // The capture's samples again, as `caphub reprocess --smooth` would take them from its
+        // recording: the same calibration (the lead-in's pose, from the same time), pose rate and
+        // skeleton.
+        ReprocessOptions ro;
+        ro.smooth = true;
+        ro.poseRateHz = o.poseRateHz;
+        ro.sensorCalibrations = o.sensorCalibrations;
+        ro.dimensions = bodyOptions.dimensions;
+        if (o.calibrate) {
+            ro.calibration.kind = *o.calibrate == body::ReferencePoseKind::T
+                                      ? CalibrationChoice::Kind::TPose
+                                      : CalibrationChoice::Kind::NPose;
+            ro.calibration.atS = {toSeconds(bodyOptions.settle)};
+        } else {
+            ro.calibration.kind = CalibrationChoice::Kind::None;
+        }
+        const body::Dimensions dims = bodyOptions.dimensions
+                                          ? *bodyOptions.dimensions
+                                          : *body::dimensionsFromSubject(b.subject);
+        ScoringSink sink(*clip->trajectory, start, clip->leadInNs, dims);
+        const auto smoothStart = std::chrono::steady_clock::now();
+        auto done = reprocess(b, keeping.recording, ro, sink);
+        r.smoothWallS =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - smoothStart).count();
+        if (!done) {
+            return Error{EIO, "reprocess --smooth: " + done.error().message};
+        }
+        if (auto s = sink.scorer.score()) {
+            r.smoothed = *s;
+        }
+    }
     return r;
 }
 
@@ -240,6 +358,21 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
                    "calibration) are off; `caphub calibrate gyro|accel|mag` makes the file\n");
     }
     out += body::formatScoreTable(r.score);
+    if (r.smoothed) {
+        const auto change = [](double now, double before) {
+            return before > 0 ? fmt::format("{:+.1f} %", (now / before - 1) * 100)
+                              : std::string("-");
+        };
+        out += fmt::format(
+            "\nreprocessed --smooth ({:.2f} s of computing, {:.0f}x real time): mean angle {:.2f} "
+            "deg (live {:.2f}, {}), root drift at the end {:.3f} m (live {:.3f}, {}), max drift "
+            "{:.3f} m (live {:.3f})\n",
+            r.smoothWallS, r.smoothWallS > 0 ? (r.leadInS + r.clipS) / r.smoothWallS : 0.0,
+            r.smoothed->meanAngleDeg, r.score.meanAngleDeg,
+            change(r.smoothed->meanAngleDeg, r.score.meanAngleDeg), r.smoothed->finalDriftM,
+            r.score.finalDriftM, change(r.smoothed->finalDriftM, r.score.finalDriftM),
+            r.smoothed->maxDriftM, r.score.maxDriftM);
+    }
     return out;
 }
 

@@ -49,6 +49,10 @@ struct EvaluateOptions {
     bool aidFilters = true;
     // BodyStage::Options::footInertial: the planted foot's slip from its own sensor.
     bool footInertial = true;
+    // Also reprocess the capture's raw samples with the non-causal pass (`caphub reprocess
+    // --smooth`, firmware/reprocess.h: the same calibration, pose rate and skeleton) and score
+    // its poses against the same truth.
+    bool reprocessSmooth = false;
 };
 
 struct EvaluateResult {
@@ -67,6 +71,9 @@ struct EvaluateResult {
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
     double wallS = 0;
+    // With reprocessSmooth: the smoothed poses' score, and the reprocess's computing time.
+    std::optional<body::PoseScore> smoothed;
+    double smoothWallS = 0;
 };
 
 // Errors: a board that is not a virtual suit, a clip that cannot be read or mapped or is too

@@ -44,6 +44,7 @@ int runCli(int argc, char** argv) {
     addEvaluateCommand(app, exitCode);
     addImportCommand(app, exitCode);
     addServeCommand(app, exitCode);
+    addReprocessCommand(app, exitCode);
 
     try {
         app.parse(argc, argv);

@@ -18,5 +18,6 @@ void addExportCommand(CLI::App& app, int& exitCode);
 void addEvaluateCommand(CLI::App& app, int& exitCode);
 void addImportCommand(CLI::App& app, int& exitCode);
 void addServeCommand(CLI::App& app, int& exitCode);
+void addReprocessCommand(CLI::App& app, int& exitCode);
 
 }  // namespace caphub::firmware

@@ -34,7 +34,52 @@ struct EvaluateCliOptions {
     std::string json;
     bool noBodyAiding = false;
     bool noFootInertial = false;
+    bool reprocessSmooth = false;
+    std::vector<std::uint64_t> seeds;
 };
+
+// With --reprocess-smooth: one row per clip and seed, live against reprocessed-smoothed, and
+// the means.
+std::string smoothTable(const std::vector<EvaluateResult>& results,
+                        const std::vector<std::uint64_t>& seeds) {
+    std::string out = fmt::format(
+        "\nlive against `caphub reprocess --smooth`: 17-joint mean angle error (deg), root drift "
+        "at the end (m)\n{:<34} {:>4} {:>10} {:>10} {:>8} {:>10} {:>10} {:>8}\n",
+        "clip", "seed", "live deg", "smooth", "change", "live m", "smooth", "change");
+    double la = 0;
+    double sa = 0;
+    double ld = 0;
+    double sd = 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < results.size(); ++i) {
+        const EvaluateResult& r = results[i];
+        if (!r.smoothed) {
+            continue;
+        }
+        const auto pct = [](double now, double before) {
+            return before > 0 ? fmt::format("{:+.1f}%", (now / before - 1) * 100)
+                              : std::string("-");
+        };
+        out +=
+            fmt::format("{:<34} {:>4} {:>10.2f} {:>10.2f} {:>8} {:>10.3f} {:>10.3f} {:>8}\n",
+                        r.clip, seeds[i], r.score.meanAngleDeg, r.smoothed->meanAngleDeg,
+                        pct(r.smoothed->meanAngleDeg, r.score.meanAngleDeg), r.score.finalDriftM,
+                        r.smoothed->finalDriftM, pct(r.smoothed->finalDriftM, r.score.finalDriftM));
+        la += r.score.meanAngleDeg;
+        sa += r.smoothed->meanAngleDeg;
+        ld += r.score.finalDriftM;
+        sd += r.smoothed->finalDriftM;
+        ++n;
+    }
+    if (n > 0) {
+        const double k = static_cast<double>(n);
+        out += fmt::format("{:<34} {:>4} {:>10.2f} {:>10.2f} {:>8} {:>10.3f} {:>10.3f} {:>8}\n",
+                           "mean", "", la / k, sa / k, fmt::format("{:+.1f}%", (sa / la - 1) * 100),
+                           ld / k, sd / k,
+                           ld > 0 ? fmt::format("{:+.1f}%", (sd / ld - 1) * 100) : "-");
+    }
+    return out;
+}
 
 int evaluate(const EvaluateCliOptions& c) {
     const auto loaded = loadVirtualSuitBoard(c.suit.board, "caphub evaluate", "the evaluation");
@@ -49,6 +94,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.poseRateHz = c.poseRateHz;
     o.aidFilters = !c.noBodyAiding;
     o.footInertial = !c.noFootInertial;
+    o.reprocessSmooth = c.reprocessSmooth;
     const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
         return kExitUsage;
@@ -72,13 +118,29 @@ int evaluate(const EvaluateCliOptions& c) {
         return kExitUsage;
     }
     o.measuredSkeleton = c.skeleton == "clip";
-    if (!c.calibration.empty()) {
-        auto set = readCalibrationFile(c.calibration);
+    // The sensor calibration file; "{seed}" in its name stands for each seed's own (the
+    // virtual suit's parts differ from seed to seed).
+    const auto calibrationFor =
+        [&](std::uint64_t seed) -> std::optional<FusionStage::Calibrations> {
+        std::string path = c.calibration;
+        if (const auto at = path.find("{seed}"); at != std::string::npos) {
+            path.replace(at, 6, std::to_string(seed));
+        }
+        auto set = readCalibrationFile(path);
         if (!set) {
             fmt::print(stderr, "caphub evaluate: {}\n", set.error().message);
-            return kExitUsage;
+            return std::nullopt;
         }
-        o.sensorCalibrations = calibrationsFor(b, *set, nullptr);
+        return calibrationsFor(b, *set, nullptr);
+    };
+    const std::vector<std::uint64_t> seeds =
+        c.seeds.empty() ? std::vector<std::uint64_t>{c.suit.seed} : c.seeds;
+    if (!c.calibration.empty()) {
+        for (const std::uint64_t seed : seeds) {
+            if (!calibrationFor(seed)) {
+                return kExitUsage;
+            }
+        }
     }
     // Every clip is checked before the first (long) run.
     for (const auto& path : c.bvh) {
@@ -89,15 +151,31 @@ int evaluate(const EvaluateCliOptions& c) {
     }
 
     std::vector<EvaluateResult> results;
+    std::vector<std::uint64_t> seedOf;
     for (const auto& path : c.bvh) {
-        o.bvh = path;
-        auto r = evaluateClip(b, o);
-        if (!r) {
-            fmt::print(stderr, "caphub evaluate: {}\n", r.error().message);
-            return r.error().code == EINVAL ? kExitUsage : kExitRuntime;
+        for (const std::uint64_t seed : seeds) {
+            o.bvh = path;
+            o.seed = seed;
+            if (!c.calibration.empty()) {
+                auto cals = calibrationFor(seed);
+                if (!cals) {
+                    return kExitUsage;
+                }
+                o.sensorCalibrations = std::move(*cals);
+            }
+            auto r = evaluateClip(b, o);
+            if (!r) {
+                fmt::print(stderr, "caphub evaluate: {}\n", r.error().message);
+                return r.error().code == EINVAL ? kExitUsage : kExitRuntime;
+            }
+            fmt::print("{}\n", formatEvaluation(*r, b, o));
+            std::fflush(stdout);
+            results.push_back(std::move(*r));
+            seedOf.push_back(seed);
         }
-        fmt::print("{}\n", formatEvaluation(*r, b, o));
-        results.push_back(std::move(*r));
+    }
+    if (c.reprocessSmooth) {
+        fmt::print("{}", smoothTable(results, seedOf));
     }
     if (!c.json.empty()) {
         std::ofstream out(c.json, std::ios::trunc);
@@ -141,6 +219,11 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--no-foot-inertial", o->noFootInertial,
                   "Do not track the planted foot's slip with its own sensor (the root follows "
                   "the foot contacts alone): to see what it does");
+    cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
+                  "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
+                  "and score it: live against smoothed, a table at the end");
+    cmd->add_option("--seeds", o->seeds, "Several seeds (instead of --seed): each clip with each")
+        ->delimiter(',');
     cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });
 }
 

@@ -12,6 +12,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
+#include "fusion/smoother.h"
 
 namespace caphub::firmware {
 
@@ -23,7 +24,30 @@ struct ReplayOptions {
     double rateHz = 0.0;
     bool fixed = false;
     bool summary = false;
+    bool smooth = false;
 };
+
+// The non-causal estimate (fusion/smoother.h) over the samples fed at every `decimation`-th
+// row, held between, one per row like runFilter's.
+std::vector<Quatd> smoothedEstimate(const std::vector<fusion::ImuSample>& samples, int decimation,
+                                    const fusion::FilterParams& params) {
+    std::vector<fusion::SmootherSample> fed;
+    for (std::size_t i = 0; i < samples.size(); i += static_cast<std::size_t>(decimation)) {
+        fusion::SmootherSample s;
+        // The filter takes float: the same rounding as the causal run.
+        s.gyrRadS = samples[i].gyrRadS.cast<float>().cast<double>();
+        s.accMps2 = samples[i].accMps2.cast<float>().cast<double>();
+        s.magUt = samples[i].magUt.cast<float>().cast<double>();
+        s.magFresh = true;
+        fed.push_back(s);
+    }
+    const auto q = fusion::smoothOrientations(fed, params);
+    std::vector<Quatd> out(samples.size());
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+        out[i] = q[i / static_cast<std::size_t>(decimation)];
+    }
+    return out;
+}
 
 Result<void> writeEstimate(const std::string& path, const BroadTrial& trial,
                            const std::vector<Quatd>& q) {
@@ -84,6 +108,7 @@ int runReplay(const ReplayOptions& o) {
     struct Row {
         std::string name;
         fusion::BroadErrors e;
+        fusion::BroadErrors smoothed;
     };
     std::vector<Row> rows;
     for (const auto& in : o.inputs) {
@@ -119,15 +144,21 @@ int runReplay(const ReplayOptions& o) {
         if (const std::string r = describeRejections(rejected); !r.empty()) {
             fmt::print(stderr, "caphub fusion replay: {}: {}\n", in, r);
         }
+        std::vector<Quatd> smoothed;
+        if (o.smooth) {
+            smoothed = smoothedEstimate(trial->samples, decimation, params);
+        }
         if (!o.output.empty()) {
-            if (auto r = writeEstimate(o.output, *trial, estimate); !r) {
+            if (auto r = writeEstimate(o.output, *trial, o.smooth ? smoothed : estimate); !r) {
                 fmt::print(stderr, "caphub fusion replay: {}\n", r.error().message);
                 return exitCodeForCreate(r.error().code);
             }
         }
         if (trial->hasTruth()) {
-            rows.push_back(
-                {trial->name, fusion::broadMetric(estimate, trial->truth, trial->movement)});
+            rows.push_back({trial->name,
+                            fusion::broadMetric(estimate, trial->truth, trial->movement),
+                            o.smooth ? fusion::broadMetric(smoothed, trial->truth, trial->movement)
+                                     : fusion::BroadErrors{}});
         } else if (o.summary) {
             fmt::print(stderr, "caphub fusion replay: {} has no ground truth: not scored\n", in);
         }
@@ -138,6 +169,24 @@ int runReplay(const ReplayOptions& o) {
         }
     }
     if (rows.empty()) {
+        return kExitOk;
+    }
+    if (o.smooth) {
+        fmt::print("{:<48} {:>9} {:>9} {:>8} {:>9} {:>9}\n", "trial (RMSE over movement, deg)",
+                   "causal", "smoothed", "change", "heading", "incl");
+        double c = 0.0;
+        double s = 0.0;
+        for (const auto& r : rows) {
+            fmt::print("{:<48} {:>9.3f} {:>9.3f} {:>7.1f}% {:>9.3f} {:>9.3f}\n", r.name,
+                       r.e.totalDeg, r.smoothed.totalDeg,
+                       (r.smoothed.totalDeg / r.e.totalDeg - 1) * 100, r.smoothed.headingDeg,
+                       r.smoothed.inclinationDeg);
+            c += r.e.totalDeg;
+            s += r.smoothed.totalDeg;
+        }
+        const double n = static_cast<double>(rows.size());
+        fmt::print("{:<48} {:>9.3f} {:>9.3f} {:>7.1f}%\n", fmt::format("mean of {}", rows.size()),
+                   c / n, s / n, (s / c - 1) * 100);
         return kExitOk;
     }
     fmt::print("{:<48} {:>9} {:>9} {:>9}\n", "trial (RMSE over movement, deg)", "total", "heading",
@@ -183,6 +232,9 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::PositiveNumber);
     replay->add_flag("--fixed", opts->fixed, "Run the fixed-point (Q-format) filter");
     replay->add_flag("--summary", opts->summary, "Several --in files: a row each and the mean");
+    replay->add_flag("--smooth", opts->smooth,
+                     "Also the non-causal estimate (forward and backward runs combined, "
+                     "fusion/smoother.h): scored beside the causal filter; --out writes it");
     replay->callback([opts, &exitCode] { exitCode = runReplay(*opts); });
 }
 

@@ -52,6 +52,9 @@ void FusionStage::onSample(const SensorSample& s) {
     const auto q = f.quat();
     Eigen::Quaternionf out(q.w, q.x, q.y, q.z);
     out.normalize();
+    if (override_) {
+        out = override_(s, out);
+    }
     Latest& now = latest_[static_cast<std::size_t>(s.sensor)];
     now.orientation = out;
     now.specificForceMps2 = c.accMps2.cast<float>();

@@ -6,6 +6,7 @@
 // lifecycle").
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -53,6 +54,16 @@ public:
     // as its sensor's known linear acceleration (fusion::OrientationFilter::updateAcc) until the
     // next call. Zero (the default): unknown.
     void setBodyAcceleration(const Eigen::Vector3d& enuMps2);
+    // What the filters are told now (the latest setBodyAcceleration).
+    Eigen::Vector3d bodyAcceleration() const {
+        return Eigen::Vector3d(bodyAccEnu_.x, bodyAccEnu_.y, bodyAccEnu_.z);
+    }
+    // Offline only (`caphub reprocess --smooth`): the orientation each sample gets in place of
+    // its filter's (given the sample and the filter's output), e.g. a smoother's over the whole
+    // take. The filters still run (their lifecycle and counters stay the same). Empty: none.
+    using OrientationOverride =
+        std::function<Eigen::Quaternionf(const SensorSample&, const Eigen::Quaternionf&)>;
+    void overrideOrientations(OrientationOverride fn) { override_ = std::move(fn); }
 
 private:
     std::vector<std::unique_ptr<Filter>> filters_;
@@ -63,6 +74,7 @@ private:
     Calibrations calibrations_;
     fusion::Vec3<float> bodyAccEnu_{};
     RecordSink* records_;
+    OrientationOverride override_;
     std::uint64_t updates_ = 0;
 };
 

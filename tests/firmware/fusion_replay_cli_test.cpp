@@ -87,3 +87,40 @@ TEST(CliFusionReplay, ARateTheFilterCannotRunAtIsAnError) {
 }
 
 }  // namespace
+
+namespace {
+
+// The non-causal estimate (fusion/smoother.h) on the shared BROAD excerpt: scored beside the
+// causal filter, and more accurate there (its inclination from the forward and backward runs).
+TEST(CliFusionReplay, TheSmoothedEstimateIsScoredBesideTheCausalOneAndBeatsItOnTheExcerpt) {
+    const std::string in =
+        std::string(CAPHUB_TEST_DATA_DIR) + "/broad/21_fast_combined_excerpt.csv.gz";
+    const CliRun r = caphub("fusion replay --smooth --summary --in " + in);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    std::istringstream lines(r.output);
+    std::string line;
+    double causal = -1;
+    double smoothed = -1;
+    while (std::getline(lines, line)) {
+        if (line.rfind("mean of 1", 0) == 0) {
+            std::istringstream fields(line.substr(9));
+            fields >> causal >> smoothed;
+        }
+    }
+    ASSERT_GT(causal, 0) << r.output;
+    ASSERT_GT(smoothed, 0) << r.output;
+    EXPECT_LT(smoothed, 0.9 * causal) << r.output;
+
+    const std::string out =
+        ::testing::TempDir() + "caphub-fusion-smooth-" + std::to_string(getpid()) + ".csv";
+    ASSERT_EQ(caphub("fusion replay --smooth --in " + in + " --out " + out).exitCode, 0);
+    const auto rows = readEstimate(out);
+    ASSERT_EQ(rows.size(), 6000U);
+    for (const auto& row : rows) {
+        ASSERT_EQ(row.size(), 5U);
+        const double n = std::hypot(std::hypot(row[1], row[2]), std::hypot(row[3], row[4]));
+        ASSERT_NEAR(n, 1.0, 1e-6);
+    }
+}
+
+}  // namespace

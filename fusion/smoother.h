@@ -1,0 +1,54 @@
+// A non-causal orientation estimate over a whole recording (`caphub reprocess --smooth`,
+// `caphub fusion replay --smooth`): the orientation filter (orientation_filter.h, used through
+// its public interface only) run forward, then backward in time over the reversed samples
+// (rates negated, the bias estimate negated: what the reversed motion looks like to the
+// gyroscope), each run started from the other's converged state, and the two estimates combined
+// per sample. The forward filter's error at a sample comes from the samples before it, the
+// backward one's from those after: their halfway rotation (slerp 0.5) averages two nearly
+// independent errors, and neither has a start-up transient (each begins where the other ended).
+// By default only the inclination is averaged, the heading is the causal run's (below).
+#pragma once
+
+#include <vector>
+
+#include "fusion/orientation_filter.h"
+#include "hal/core/quaternion.h"
+
+namespace caphub::fusion {
+
+// One sample of one sensor, calibrated, sensor frame.
+struct SmootherSample {
+    Vec3d gyrRadS = Vec3d::Zero();
+    Vec3d accMps2 = Vec3d::Zero();
+    Vec3d magUt = Vec3d::Zero();
+    bool magFresh = false;    // feed the magnetometer (a new, not overflowed reading)
+    bool gyrClipped = false;  // the driver flagged the gyroscope saturated
+    // The sensor's known linear acceleration (ENU, m/s^2), as the causal filter is told it; zero:
+    // unknown.
+    Vec3d linAccEnu = Vec3d::Zero();
+};
+
+struct SmootherStats {
+    double meanDisagreementDeg = 0;  // forward vs backward, over the samples
+    double maxDisagreementDeg = 0;
+};
+
+struct SmootherOptions {
+    // The backward run's share of the combination (0: the forward run alone, which still starts
+    // converged: no start-up transient).
+    double backwardWeight = 0.5;
+    // Combine the inclinations only; the heading (the turn about up) is the causal run's (the
+    // first forward run, from power-on, as live). On BROAD the backward run's heading was worse
+    // than the forward one's, and a forward run started from the backward run's state inherits
+    // its heading at the start (docs/reprocess.md).
+    bool forwardHeading = true;
+};
+
+// One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the
+// samples' rate). Empty in, empty out.
+std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
+                                      const FilterParams& params,
+                                      const SmootherOptions& options = {},
+                                      SmootherStats* stats = nullptr);
+
+}  // namespace caphub::fusion
