@@ -49,6 +49,10 @@ struct EvaluateOptions {
     bool aidFilters = true;
     // BodyStage::Options::footInertial: the planted foot's slip from its own sensor.
     bool footInertial = true;
+    // The online hard-iron estimators' state file (docs/fusion.md, "No magnetometer
+    // calibration"): one line per sensor, "name" and 19 numbers; read before the run when it
+    // exists, written after it. Empty: none.
+    std::filesystem::path magState;
 };
 
 struct EvaluateResult {
@@ -66,6 +70,10 @@ struct EvaluateResult {
     double nominalMountingErrorMeanDeg = 0;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
+    // Per board sensor at the end of the run: its heading source and its online hard-iron
+    // estimate (docs/fusion.md, "No magnetometer calibration").
+    std::vector<MagMode> magModes;
+    std::vector<fusion::HardIronEstimate> magEstimates;
     double wallS = 0;
 };
 
