@@ -22,7 +22,7 @@ namespace caphub::fusion {
 
 struct OnlineHardIronParams {
     double memoryS = 300.0;       // s, time constant of the forgetting (of the sample weights)
-    double minSpread = 0.01;      // 0..1, smallest spread of the field directions for trust
+    double minSpread = 0.005;     // 0..1, smallest spread of the field directions for trust
     double maxResidualPct = 4.0;  // RMS distance from the sphere, % of B, above: not trusted
     double minFieldUt = 20.0;     // plausible magnitude of the earth's field, uT
     double maxFieldUt = 80.0;
