@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
+#include <map>
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "board/sim/virtual_suit.h"
 #include "firmware/reprocess.h"
@@ -193,6 +196,69 @@ MountingErrors mountingErrors(
     return m;
 }
 
+// The online hard-iron state file: "name n1 ... n24" per line, '#' comments.
+static Result<void> loadMagState(const std::filesystem::path& path, const board::Board& b,
+                                 FusionStage& fusion) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+        return {};  // the first run: nothing to start from
+    }
+    std::ifstream in(path);
+    if (!in) {
+        return Error{EINVAL, fmt::format("--mag-state: cannot read '{}'", path.string())};
+    }
+    std::string line;
+    int lineNo = 0;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        const auto first = line.find_first_not_of(" \t\r");
+        if (first == std::string::npos || line[first] == '#') {
+            continue;
+        }
+        const auto nameEnd = line.find_first_of(" \t", first);
+        const std::string name = line.substr(first, nameEnd - first);
+        const auto state = nameEnd == std::string::npos
+                               ? std::nullopt
+                               : fusion::parseHardIronState(line.substr(nameEnd));
+        if (!state) {
+            return Error{EINVAL, fmt::format("{}:{}: expected a sensor name and 19 finite numbers "
+                                             "(weight ... samples)",
+                                             path.string(), lineNo)};
+        }
+        bool known = false;
+        for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+            if (b.sensors[i].name == name) {
+                known = true;
+                fusion.setMagEstimatorState(static_cast<int>(i), *state);
+            }
+        }
+        if (!known) {
+            return Error{EINVAL, fmt::format("{}:{}: unknown sensor '{}' (board '{}')",
+                                             path.string(), lineNo, name, b.name)};
+        }
+    }
+    return {};
+}
+
+static Result<void> saveMagState(const std::filesystem::path& path, const board::Board& b,
+                                 const FusionStage& fusion) {
+    std::string text =
+        "# caphub online hard-iron estimators (docs/fusion.md): sensor, weight, sum m (3), "
+        "sum m m^T (9), sum |m|^2 m (3), sum |m|^2, sum |m|^4, samples\n";
+    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
+        if (const auto s = fusion.magEstimatorState(static_cast<int>(i))) {
+            text += b.sensors[i].name + " " + fusion::formatHardIronState(*s) + "\n";
+        }
+    }
+    std::ofstream out(path, std::ios::trunc);
+    out << text;
+    out.close();
+    if (!out) {
+        return Error{EIO, fmt::format("--mag-state: cannot write '{}'", path.string())};
+    }
+    return {};
+}
+
 Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
     if (!board::allBusesSimulated(b)) {
         return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
@@ -251,6 +317,11 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     }
     Hub hub(b, clock, *suit, std::move(hubOptions));
     scoring.follow(hub.poses());
+    if (!o.magState.empty()) {
+        if (auto loaded = loadMagState(o.magState, b, hub.fusion()); !loaded) {
+            return loaded.error();
+        }
+    }
     const auto wallStart = std::chrono::steady_clock::now();
     const CaptureStats stats =
         hub.runStepped(Duration{clip->leadInNs + clip->motion->durationNs()});
@@ -258,6 +329,11 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.samples = stats.samples;
     const BodyStage& bodyStage = hub.body();
     const FusionStage& fusion = hub.fusion();
+    if (!o.magState.empty()) {
+        if (auto saved = saveMagState(o.magState, b, fusion); !saved) {
+            return saved.error();
+        }
+    }
     body::PoseScorer& scorer = scoring.scorer();
 
     if (!bodyStage.calibrationError().empty()) {
@@ -280,6 +356,8 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.calibration = calibrationName(bodyStage);
     for (std::size_t i = 0; i < b.sensors.size(); ++i) {
         r.gyroClipEvents.push_back(fusion.clipEvents(static_cast<int>(i)));
+        r.magModes.push_back(fusion.magMode(static_cast<int>(i)));
+        r.magEstimates.push_back(fusion.magEstimate(static_cast<int>(i)));
     }
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
@@ -343,6 +421,23 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
             clipped +=
                 fmt::format("{}{} ({} time{})", clipped.empty() ? "" : ", ", b.sensors[i].name,
                             r.gyroClipEvents[i], r.gyroClipEvents[i] == 1 ? "" : "s");
+        }
+    }
+    {
+        // The magnetometers' heading sources at the end, counted by mode.
+        std::map<std::string, std::vector<std::string>> byMode;
+        for (std::size_t i = 0; i < r.magModes.size() && i < b.sensors.size(); ++i) {
+            byMode[toString(r.magModes[i])].push_back(b.sensors[i].name);
+        }
+        std::string modes;
+        for (const auto& [mode, names] : byMode) {
+            modes += fmt::format("{}{} {}", modes.empty() ? "" : ", ", names.size(), mode);
+            if (mode != toString(MagMode::Calibrated) && names.size() < 6) {
+                modes += fmt::format(" ({})", fmt::join(names, " "));
+            }
+        }
+        if (!modes.empty()) {
+            out.insert(out.size() - 1, fmt::format("magnetometers at the end: {}\n", modes));
         }
     }
     if (!clipped.empty()) {

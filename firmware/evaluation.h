@@ -53,6 +53,10 @@ struct EvaluateOptions {
     // --smooth`, firmware/reprocess.h: the same calibration, pose rate and skeleton) and score
     // its poses against the same truth.
     bool reprocessSmooth = false;
+    // The online hard-iron estimators' state file (docs/fusion.md, "No magnetometer
+    // calibration"): one line per sensor, "name" and 19 numbers; read before the run when it
+    // exists, written after it. Empty: none.
+    std::filesystem::path magState;
 };
 
 struct EvaluateResult {
@@ -70,6 +74,10 @@ struct EvaluateResult {
     double nominalMountingErrorMeanDeg = 0;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
+    // Per board sensor at the end of the run: its heading source and its online hard-iron
+    // estimate (docs/fusion.md, "No magnetometer calibration").
+    std::vector<MagMode> magModes;
+    std::vector<fusion::HardIronEstimate> magEstimates;
     double wallS = 0;
     // With reprocessSmooth: the smoothed poses' score, and the reprocess's computing time.
     std::optional<body::PoseScore> smoothed;

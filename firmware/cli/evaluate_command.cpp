@@ -32,6 +32,7 @@ struct EvaluateCliOptions {
     double poseRateHz = 60;
     std::string skeleton = "clip";
     std::string json;
+    std::string magState;
     bool noBodyAiding = false;
     bool noFootInertial = false;
     bool reprocessSmooth = false;
@@ -95,6 +96,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.aidFilters = !c.noBodyAiding;
     o.footInertial = !c.noFootInertial;
     o.reprocessSmooth = c.reprocessSmooth;
+    o.magState = c.magState;
     const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
         return kExitUsage;
@@ -213,6 +215,10 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                     "lengths would be) or board (the board's [subject] proportions)")
         ->capture_default_str();
     cmd->add_option("--json", o->json, "Also write the scores to this JSON file");
+    cmd->add_option("--mag-state", o->magState,
+                    "The online hard-iron estimators' sums of the sensors whose magnetometer the "
+                    "--calibration file does not correct: read before each clip when the file "
+                    "exists, written after it (docs/fusion.md, \"No magnetometer calibration\")");
     cmd->add_flag("--no-body-aiding", o->noBodyAiding,
                   "Do not tell the filters the body's acceleration (from the foot contacts): "
                   "to see what it does");

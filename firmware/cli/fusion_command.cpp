@@ -1,5 +1,6 @@
 // caphub fusion replay: runs the orientation filter over recorded IMU data in the BROAD layout,
 // writes the estimate, and scores it against the ground truth when the file has one.
+#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -13,6 +14,7 @@
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
 #include "fusion/smoother.h"
+#include "fusion/tuning.h"
 
 namespace caphub::firmware {
 
@@ -209,6 +211,147 @@ int runReplay(const ReplayOptions& o) {
     return kExitOk;
 }
 
+struct CvOptions {
+    std::vector<std::string> inputs;
+    std::vector<double> ratesHz{0.0, 57.0};  // 0: the file's own rate
+    bool noFixed = false;
+};
+
+// One trial held in memory for the search.
+struct CvTrial {
+    BroadTrial trial;
+    std::string path;
+};
+
+int decimationFor(const BroadTrial& t, double rateHz) {
+    return rateHz > 0.0 ? std::max(1, static_cast<int>(std::lround(t.rateHz / rateHz))) : 1;
+}
+
+fusion::BroadErrors scoreRun(const CvTrial& t, double rateHz, fusion::FilterVariant v,
+                             const fusion::FilterParams& p) {
+    const auto est =
+        fusion::runFilter(t.trial.samples, t.trial.rateHz, decimationFor(t.trial, rateHz), v, p);
+    return fusion::broadMetric(est, t.trial.truth, t.trial.movement);
+}
+
+std::string rateName(double rateHz) {
+    return rateHz > 0.0 ? fmt::format("{:g} Hz", rateHz) : std::string("the file's rate");
+}
+
+// caphub fusion cv: leave-one-out over the trials for the parameters of tuningSearchSpace():
+// every candidate is scored on every trial (float) at every rate; the objective of a candidate
+// on a trial is its total RMSE averaged over the rates (one parameter set for all rates); each
+// trial is then scored with the candidate that is best on the other trials.
+int runCv(const CvOptions& o) {
+    if (o.inputs.size() < 3) {
+        fmt::print(stderr, "caphub fusion cv: leave-one-out needs at least 3 --in files\n");
+        return kExitUsage;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<CvTrial> trials;
+    for (const auto& in : o.inputs) {
+        auto trial = readBroadCsv(in);
+        if (!trial) {
+            fmt::print(stderr, "caphub fusion cv: {}\n", trial.error().message);
+            return kExitUsage;
+        }
+        if (!trial->hasTruth()) {
+            fmt::print(stderr, "caphub fusion cv: {} has no ground truth: nothing to score\n", in);
+            return kExitUsage;
+        }
+        for (double r : o.ratesHz) {
+            if (r > trial->rateHz * 1.0001) {
+                fmt::print(stderr,
+                           "caphub fusion cv: --rate-hz {:g} is above the file's rate {:g} Hz "
+                           "({})\n",
+                           r, trial->rateHz, in);
+                return kExitUsage;
+            }
+        }
+        trials.push_back({std::move(*trial), in});
+    }
+    const auto space = fusion::tuningSearchSpace();
+    const std::size_t nT = trials.size();
+    const std::size_t nR = o.ratesHz.size();
+    // errors[c][r][t] (float)
+    std::vector<std::vector<std::vector<fusion::BroadErrors>>> errors(
+        space.size(),
+        std::vector<std::vector<fusion::BroadErrors>>(nR, std::vector<fusion::BroadErrors>(nT)));
+    std::vector<std::vector<double>> objective(space.size(), std::vector<double>(nT, 0.0));
+    for (std::size_t c = 0; c < space.size(); ++c) {
+        for (std::size_t r = 0; r < nR; ++r) {
+            for (std::size_t t = 0; t < nT; ++t) {
+                errors[c][r][t] = scoreRun(trials[t], o.ratesHz[r], fusion::FilterVariant::Float,
+                                           space[c].params);
+                objective[c][t] += errors[c][r][t].totalDeg / static_cast<double>(nR);
+            }
+        }
+    }
+    const std::vector<std::size_t> loo = fusion::leaveOneOutChoice(objective);
+    const std::size_t inSample = fusion::inSampleChoice(objective);
+
+    fmt::print(
+        "leave-one-out over {} trials: {} parameter sets (tauAccS x accLpDamping x "
+        "headingNoiseDegRtHz, docs/fusion.md); objective: total RMSE, mean over the rates ({})\n",
+        nT, space.size(), [&] {
+            std::string s;
+            for (double r : o.ratesHz) {
+                s += (s.empty() ? "" : ", ") + rateName(r);
+            }
+            return s;
+        }());
+    fmt::print("defaults (set 0): {}\n", space[0].label);
+    fmt::print("in-sample best on all {} (set {}): {}\n", nT, inSample, space[inSample].label);
+    fmt::print("{:<48} {}\n", "held-out trial", "set chosen on the other trials");
+    for (std::size_t t = 0; t < nT; ++t) {
+        fmt::print("{:<48} {:>2}: {}\n", trials[t].trial.name, loo[t], space[loo[t]].label);
+    }
+
+    std::vector<fusion::FilterVariant> variants{fusion::FilterVariant::Float};
+    if (!o.noFixed) {
+        variants.push_back(fusion::FilterVariant::Fixed);
+    }
+    for (std::size_t r = 0; r < nR; ++r) {
+        for (const auto v : variants) {
+            const bool fixed = v == fusion::FilterVariant::Fixed;
+            // The float figures are the ones the search computed; the fixed ones are run with the
+            // float search's choices.
+            const auto run = [&](std::size_t c, std::size_t t) {
+                return fixed ? scoreRun(trials[t], o.ratesHz[r], v, space[c].params)
+                             : errors[c][r][t];
+            };
+            fmt::print("\n{} at {} (RMSE over movement, deg)\n", fixed ? "fixed" : "float",
+                       rateName(o.ratesHz[r]));
+            fmt::print("{:<40} {:>26} {:>26} {:>26}\n", "", "defaults (in-sample)",
+                       "best on all (in-sample)", "leave-one-out (held-out)");
+            fmt::print("{:<40} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}\n", "trial",
+                       "total", "heading", "incl", "total", "heading", "incl", "total", "heading",
+                       "incl");
+            double sum[9] = {};
+            for (std::size_t t = 0; t < nT; ++t) {
+                const fusion::BroadErrors e[3] = {run(0, t), run(inSample, t), run(loo[t], t)};
+                std::string line = fmt::format("{:<40}", trials[t].trial.name.substr(0, 40));
+                for (int k = 0; k < 3; ++k) {
+                    line += fmt::format(" {:>8.3f} {:>8.3f} {:>8.3f}", e[k].totalDeg,
+                                        e[k].headingDeg, e[k].inclinationDeg);
+                    sum[3 * k] += e[k].totalDeg;
+                    sum[3 * k + 1] += e[k].headingDeg;
+                    sum[3 * k + 2] += e[k].inclinationDeg;
+                }
+                fmt::print("{}\n", line);
+            }
+            std::string line = fmt::format("{:<40}", fmt::format("mean of {}", nT));
+            for (double x : sum) {
+                line += fmt::format(" {:>8.3f}", x / static_cast<double>(nT));
+            }
+            fmt::print("{}\n", line);
+        }
+    }
+    fmt::print("\n{:.1f} s\n",
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    return kExitOk;
+}
+
 }  // namespace
 
 void addFusionCommand(CLI::App& app, int& exitCode) {
@@ -236,6 +379,21 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
                      "Also the non-causal estimate (forward and backward runs combined, "
                      "fusion/smoother.h): scored beside the causal filter; --out writes it");
     replay->callback([opts, &exitCode] { exitCode = runReplay(*opts); });
+
+    auto cv = std::make_shared<CvOptions>();
+    CLI::App* cvCmd = fusion->add_subcommand(
+        "cv",
+        "Leave-one-out over BROAD trials with ground truth for the filter's tunable parameters: "
+        "the per-trial and mean held-out errors next to the in-sample ones");
+    cvCmd->add_option("--in", cv->inputs, "Trial files (.csv or .csv.gz), at least 3")->required();
+    cvCmd
+        ->add_option("--rate-hz", cv->ratesHz,
+                     "Rates to score at (0: the file's rate); repeatable; the objective is the "
+                     "mean over them")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
+    cvCmd->add_flag("--no-fixed", cv->noFixed, "Leave out the fixed-point tables");
+    cvCmd->callback([cv, &exitCode] { exitCode = runCv(*cv); });
 }
 
 }  // namespace caphub::firmware

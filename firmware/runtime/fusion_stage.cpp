@@ -1,6 +1,22 @@
 #include "firmware/runtime/fusion_stage.h"
 
+#include <cmath>
+
 namespace caphub::firmware {
+
+const char* toString(MagMode m) {
+    switch (m) {
+        case MagMode::Calibrated:
+            return "calibrated";
+        case MagMode::Raw:
+            return "uncorrected";
+        case MagMode::Estimating:
+            return "gyroscope-only heading (estimating hard iron)";
+        case MagMode::Online:
+            return "online hard iron";
+    }
+    return "?";
+}
 
 FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibrations calibrations)
     : latest_(board.sensors.size()),
@@ -10,12 +26,23 @@ FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibra
       calibrations_(std::move(calibrations)),
       records_(records) {
     calibrations_.resize(board.sensors.size());
-    for (const auto& s : board.sensors) {
+    onlineMag_.resize(board.sensors.size());
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        const auto& s = board.sensors[i];
         fusion::FilterParams p;
         p.gyrRateHz = s.achievedOdrHz;
         p.accRateHz = s.achievedOdrHz;
         p.magRateHz = s.magOdrHz > 0 ? s.magOdrHz : s.achievedOdrHz;
         filters_.push_back(std::make_unique<Filter>(p));
+        if (!calibrations_[i] || !calibrations_[i]->hasMag) {
+            OnlineMag m{fusion::OnlineHardIron(p.magRateHz),
+                        {},
+                        MagMode::Estimating,
+                        false,
+                        0,
+                        static_cast<std::uint32_t>(std::max(1.0, std::round(p.magRateHz)))};
+            onlineMag_[i] = m;
+        }
     }
 }
 
@@ -41,8 +68,7 @@ void FusionStage::onSample(const SensorSample& s) {
                 bodyAccEnu_);
     if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
         (in.flags & hal::ImuSample::kMagOverflow) == 0) {
-        f.updateMag({static_cast<float>(c.magUt.x()), static_cast<float>(c.magUt.y()),
-                     static_cast<float>(c.magUt.z())});
+        magUpdate(static_cast<std::size_t>(s.sensor), f, c.magUt);
     }
     if (f.rejections().samples() != rejectedBefore) {
         // A glitched read (not finite, beyond the chip's range): the filter dropped it; the body
@@ -95,6 +121,100 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
         case RuntimeEvent::Kind::SensorOnline:
             return;
     }
+}
+
+void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt) {
+    const auto feed = [&f](const Eigen::Vector3d& m) {
+        f.updateMag(
+            {static_cast<float>(m.x()), static_cast<float>(m.y()), static_cast<float>(m.z())});
+    };
+    auto& slot = onlineMag_[sensor];
+    if (!slot) {
+        feed(magUt);  // calibrated
+        return;
+    }
+    OnlineMag& o = *slot;
+    if (!magUt.allFinite()) {
+        feed(magUt);  // the filter rejects and counts it
+        return;
+    }
+    if (!o.decided) {
+        // The first reading: a field of the earth's size (22-67 uT anywhere on earth) is taken
+        // as it is, as before this estimator existed; anything else is a chip offset or hard
+        // iron, and the heading is the gyroscope's until the estimate is good (or a saved one
+        // is good already).
+        o.estimate = o.estimator.refresh();
+        const double n = magUt.norm();
+        o.mode = o.estimate.good ? MagMode::Online
+                                 : (n >= 22.0 && n <= 67.0 ? MagMode::Raw : MagMode::Estimating);
+        o.decided = true;
+    }
+    o.estimator.add(magUt);
+    if (++o.sinceSolve >= o.solveEvery) {
+        o.sinceSolve = 0;
+        o.estimate = o.estimator.refresh();
+        // Raw stays raw while the estimate agrees that the offset is small; an estimate that
+        // turns good switches to it, one that turns bad (the field no longer fits: a
+        // disturbance, a new magnet) falls back to the gyroscope.
+        const bool smallOffset = o.estimate.offsetUt.norm() < 0.1 * o.estimate.fieldNormUt;
+        if (o.estimate.good && !(o.mode == MagMode::Raw && smallOffset)) {
+            if (o.mode == MagMode::Estimating) {
+                // From a gyroscope-only heading to a magnetic one: at the filter's normal heading
+                // gain (a slow blend), not the exact first alignment.
+                auto st = f.state();
+                st.headingInit = true;
+                f.setState(st);
+            }
+            o.mode = MagMode::Online;
+        } else if (o.mode == MagMode::Online && o.estimate.valid && !o.estimate.good) {
+            o.mode = MagMode::Estimating;
+        }
+    }
+    switch (o.mode) {
+        case MagMode::Raw:
+            feed(magUt);
+            return;
+        case MagMode::Online:
+            feed(magUt - o.estimate.offsetUt);
+            return;
+        case MagMode::Estimating:
+        case MagMode::Calibrated:
+            return;
+    }
+}
+
+MagMode FusionStage::magMode(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+        return MagMode::Calibrated;
+    }
+    return onlineMag_[static_cast<std::size_t>(sensor)]->mode;
+}
+
+fusion::HardIronEstimate FusionStage::magEstimate(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+        return {};
+    }
+    return onlineMag_[static_cast<std::size_t>(sensor)]->estimator.estimate();
+}
+
+std::optional<fusion::OnlineHardIronState> FusionStage::magEstimatorState(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+        return std::nullopt;
+    }
+    return onlineMag_[static_cast<std::size_t>(sensor)]->estimator.state();
+}
+
+bool FusionStage::setMagEstimatorState(int sensor, const fusion::OnlineHardIronState& state) {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+        return false;
+    }
+    auto& o = *onlineMag_[static_cast<std::size_t>(sensor)];
+    o.decided = false;
+    return o.estimator.setState(state);
 }
 
 std::uint32_t FusionStage::resets(int sensor) const {

@@ -14,10 +14,21 @@
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/record_sink.h"
+#include "fusion/calibration/online_hard_iron.h"
 #include "fusion/calibration/sensor_calibration.h"
 #include "fusion/orientation_filter.h"
 
 namespace caphub::firmware {
+
+// Where a sensor's heading comes from (docs/fusion.md, "No magnetometer calibration").
+enum class MagMode {
+    Calibrated,  // the calibration file corrects the magnetometer: magnetic heading
+    Raw,         // no correction, but the raw field looked like the earth's: magnetic heading
+    Estimating,  // the field cannot be trusted yet (or any more): gyroscope-only heading while
+                 // the online hard-iron estimate gathers turns
+    Online,      // magnetic heading with the online hard-iron estimate subtracted
+};
+const char* toString(MagMode m);
 
 class FusionStage final : public PipelineStage {
 public:
@@ -65,13 +76,34 @@ public:
         std::function<Eigen::Quaternionf(const SensorSample&, const Eigen::Quaternionf&)>;
     void overrideOrientations(OrientationOverride fn) { override_ = std::move(fn); }
 
+    // A sensor's heading source, and its online hard-iron estimate (invalid for a sensor whose
+    // magnetometer the calibration file corrects, and for no sensor).
+    MagMode magMode(int sensor) const;
+    fusion::HardIronEstimate magEstimate(int sensor) const;
+    // The estimator's sums, to start a later run from (setMagEstimatorState before the first
+    // sample; false: no such sensor, a calibrated one, or a state with non-finite sums).
+    std::optional<fusion::OnlineHardIronState> magEstimatorState(int sensor) const;
+    bool setMagEstimatorState(int sensor, const fusion::OnlineHardIronState& state);
+
 private:
+    struct OnlineMag {
+        fusion::OnlineHardIron estimator;
+        fusion::HardIronEstimate estimate;
+        MagMode mode = MagMode::Estimating;
+        bool decided = false;          // the first reading chose Raw or Estimating
+        std::uint32_t sinceSolve = 0;  // readings since the last estimate()
+        std::uint32_t solveEvery = 1;  // readings per estimate() (about 1 s)
+    };
+    // Feeds a calibrated (or raw) field reading to the sensor's filter as its mode says.
+    void magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt);
+
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Latest> latest_;
     std::vector<bool> valid_;
     std::vector<bool> resetPending_;  // reset while out, no sample since
     std::vector<std::uint32_t> resets_;
     Calibrations calibrations_;
+    std::vector<std::optional<OnlineMag>> onlineMag_;  // sensors without a magnetometer calibration
     fusion::Vec3<float> bodyAccEnu_{};
     RecordSink* records_;
     OrientationOverride override_;

@@ -170,6 +170,67 @@ TEST(FusionStage, CountsTheRejectedSamplesPerSensorAndStaysFinite) {
     EXPECT_EQ(fusion.rejections(99).samples(), 0U);  // no such sensor
 }
 
+// A sensor without a magnetometer calibration whose chip reads a 200 uT offset: its first field
+// does not look like the earth's, so its heading is the gyroscope's while it turns; once the
+// online estimate has seen enough turns it is magnetic again, with the offset subtracted, and
+// the heading ends at magnetic north. The sensor starts facing 120 deg off north.
+TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMagneticHeading) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    const int sensor = 4;
+    const double odr = b.sensors[sensor].achievedOdrHz;
+    const double magOdr = b.sensors[sensor].magOdrHz > 0 ? b.sensors[sensor].magOdrHz : odr;
+    const int magEvery = std::max(1, static_cast<int>(std::lround(odr / magOdr)));
+    const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
+    const Eigen::Vector3d offset(180.0, -60.0, 70.0);
+    Quatd truth(Eigen::AngleAxisd(120.0 * hal::kPi / 180.0, Eigen::Vector3d::UnitZ()));
+    const double dt = 1.0 / odr;
+    firmware::SensorSample s;
+    s.sensor = sensor;
+    Timestamp t{1s};
+    EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Estimating);  // until told otherwise
+    const auto run = [&](double seconds, bool turning) {
+        const int n = static_cast<int>(seconds * odr);
+        for (int i = 0; i < n; ++i) {
+            const double tau = static_cast<double>(i) * dt;
+            // A tumble about an axis that wanders over the sphere (sensor frame).
+            const Eigen::Vector3d w =
+                turning ? Eigen::Vector3d(1.2 * std::cos(0.31 * tau), 1.2 * std::sin(0.31 * tau),
+                                          0.8 * std::cos(0.13 * tau))
+                        : Eigen::Vector3d::Zero();
+            truth = (truth * Quatd(Eigen::AngleAxisd(w.norm() * dt, w.normalized()))).normalized();
+            if (!turning) {
+                truth.normalize();
+            }
+            s.sample.gyrRadps = w.cast<float>();
+            s.sample.accMps2 = (truth.conjugate() * Eigen::Vector3d(0, 0, 9.81)).cast<float>();
+            s.sample.magUt = (truth.conjugate() * field + offset).cast<float>();
+            s.sample.flags = (i % magEvery == 0) ? hal::ImuSample::kMagFresh : 0;
+            s.sample.t = t;
+            t += periodFromHz(odr);
+            fusion.onSample(s);
+        }
+    };
+    run(3.0, false);
+    EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Estimating);
+    run(240.0, true);
+    EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Online);
+    const fusion::HardIronEstimate e = fusion.magEstimate(sensor);
+    EXPECT_TRUE(e.good);
+    EXPECT_LT((e.offsetUt - offset).norm(), 2.0);
+    EXPECT_NEAR(e.fieldNormUt, 50.0, 1.0);
+    run(30.0, false);
+    ASSERT_NE(fusion.latest(sensor), nullptr);
+    const double errDeg =
+        fusion.latest(sensor)->orientation.cast<double>().angularDistance(truth) * 180 / hal::kPi;
+    EXPECT_LT(errDeg, 3.0);
+    // The saved sums start another run's estimator where this one ended.
+    firmware::FusionStage next(b, nullptr);
+    ASSERT_TRUE(next.setMagEstimatorState(sensor, *fusion.magEstimatorState(sensor)));
+    EXPECT_TRUE(next.magEstimate(sensor).good);
+    EXPECT_EQ(next.magEstimate(sensor).offsetUt, fusion.magEstimate(sensor).offsetUt);
+}
+
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
     calibrateInPose(body::ReferencePoseKind::T, body::CalibrationMethod::TPose);
 }

@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "board/loader.h"
 #include "board/sim/joint_map.h"
@@ -442,6 +443,22 @@ TEST(EvaluateCli, RejectsAnUnknownBoardWithExitCode2) {
     const auto r =
         caphub::testing::caphub("evaluate --board /nonexistent/suit.toml --bvh " + kWalk.string());
     EXPECT_EQ(r.exitCode, 2) << r.output;
+}
+
+// A malformed online hard-iron state file is refused with its file and line, before the run.
+TEST(EvaluateCli, RejectsAMalformedMagStateWithItsLine) {
+    const std::string path =
+        ::testing::TempDir() + "caphub-mag-state-" + std::to_string(::getpid()) + ".txt";
+    {
+        std::ofstream f(path);
+        f << "# comment\npelvis 1 2 3\n";
+    }
+    const auto r =
+        caphub::testing::caphub("evaluate --mag-state " + path + " --bvh " + kWalk.string());
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find(path + ":2: expected a sensor name and 19 finite numbers"),
+              std::string::npos)
+        << r.output;
 }
 
 TEST(EvaluateCli, RejectsAnUnknownCalibrationWithExitCode2) {

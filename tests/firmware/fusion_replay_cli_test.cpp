@@ -86,6 +86,50 @@ TEST(CliFusionReplay, ARateTheFilterCannotRunAtIsAnError) {
     EXPECT_THAT(r.output, HasSubstr("cannot run at 1e+09 Hz"));
 }
 
+// caphub fusion cv on three copies of the shipped BROAD excerpt: every fold's training trials are
+// the same data as its held-out one, so the held-out columns must equal the best-on-all ones.
+TEST(CliFusionCv, HeldOutEqualsInSampleBestOnIdenticalTrials) {
+    const std::string trial =
+        std::string(CAPHUB_SOURCE_DIR) + "/tests/data/broad/21_fast_combined_excerpt.csv.gz";
+    const CliRun r =
+        caphub("fusion cv --no-fixed --in " + trial + " --in " + trial + " --in " + trial);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("leave-one-out over 3 trials: 27 parameter sets"));
+    EXPECT_THAT(r.output, HasSubstr("leave-one-out (held-out)"));
+    // The mean rows: "mean of 3" then nine numbers (defaults, best on all, held-out).
+    std::istringstream in(r.output);
+    std::string line;
+    int meanRows = 0;
+    while (std::getline(in, line)) {
+        if (line.rfind("mean of 3", 0) != 0) {
+            continue;
+        }
+        std::istringstream nums(line.substr(9));
+        double v[9];
+        for (double& x : v) {
+            ASSERT_TRUE(nums >> x) << line;
+        }
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_EQ(v[3 + k], v[6 + k]) << line;
+        }
+        ++meanRows;
+    }
+    EXPECT_EQ(meanRows, 2);  // float at the file's rate and at 57 Hz
+}
+
+TEST(CliFusionCv, RefusesTooFewTrialsAndATrialWithoutGroundTruth) {
+    const std::string trial =
+        std::string(CAPHUB_SOURCE_DIR) + "/tests/data/broad/21_fast_combined_excerpt.csv.gz";
+    CliRun r = caphub("fusion cv --in " + trial + " --in " + trial);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("at least 3"));
+    const std::string noTruth = writeStillTrial(
+        ::testing::TempDir() + "caphub-fusion-cv-" + std::to_string(getpid()) + ".csv", -1, 0.0);
+    r = caphub("fusion cv --in " + trial + " --in " + trial + " --in " + noTruth);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(noTruth + " has no ground truth"));
+}
+
 }  // namespace
 
 namespace {
