@@ -74,6 +74,9 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     }
     gridWaits_ = false;
     const Timestamp t = u.t;
+    if (!firstUpdate_) {
+        firstUpdate_ = t;
+    }
     auto& h = held_[static_cast<std::size_t>(u.sensor)];
     if (h.count > 0 && t > h.latestT) {
         h.previous = h.latest;
@@ -300,6 +303,9 @@ std::optional<Timestamp> BodyTracker::watermark(Timestamp newest) const {
     std::optional<Timestamp> least;
     for (std::size_t i = 0; i < held_.size(); ++i) {
         const HeldOrientation& h = held_[i];
+        if (online_[i] && h.count == 0 && firstUpdate_ && newest - *firstUpdate_ <= kStartWait) {
+            return std::nullopt;  // its first sample is still to come
+        }
         if (!online_[i] || h.count == 0) {
             continue;
         }

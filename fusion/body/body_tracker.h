@@ -131,8 +131,11 @@ public:
     // online sensors' latest update times, leaving out a sensor that is late (its latest update
     // more than 2.5 of its sample intervals, and at least 10 ms, behind `newest`: its bus
     // stalled) - the time up to which a pose can be solved from measured orientations on every
-    // bus. None before any update.
+    // bus. None before any update, and none while an online sensor has not reported yet within
+    // kStartWait of the first update (at the start every sensor's first sample is waited for, so
+    // that the first pose is measured whole; one that has not come by then is left out).
     std::optional<Timestamp> watermark(Timestamp newest) const;
+    static constexpr Duration kStartWait = std::chrono::milliseconds(200);
 
     // Poses are solved: a body calibration is in use, or the nominal mountings are allowed.
     bool calibrated() const { return calibrated_; }
@@ -226,6 +229,7 @@ private:
     std::optional<Timestamp> headingResetAt_;
 
     bool gridStarted_ = false;
+    std::optional<Timestamp> firstUpdate_;  // of any sensor, since the tracker was made
     bool gridWaits_ = false;  // the update that completed the first calibration: nothing due
     Timestamp nextGrid_{};
     Timestamp lastPose_{};

@@ -453,6 +453,39 @@ TEST(BodyTracker, TheWatermarkIsTheLeastLiveSensorsTimeLeavingOutALateOne) {
     EXPECT_EQ(*tracker.watermark(at(110ms)), at(105ms));
 }
 
+TEST(BodyTracker, TheFirstPoseWaitsForEverySensorsFirstSample) {
+    // At the start the sensors' first samples come a few ms apart (their buses start one after
+    // the other). The first pose used to be solved after the first sensor's first sample, the
+    // others not measured and drawn at an orientation nobody measured (a body lying on the
+    // floor in the preview and the streams' first frame).
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    const Pose upright;
+    const int forearm = suit.sensor(S::LForearm);
+    feed(tracker, suit, at(0ms), upright, 0, suit.nominal(), nullptr, forearm);
+    EXPECT_FALSE(tracker.watermark(at(0ms)).has_value());  // nothing can be due yet
+    feed(tracker, suit, at(10ms), upright, 0, suit.nominal(), nullptr, forearm);
+    EXPECT_FALSE(tracker.watermark(at(10ms)).has_value());
+    std::vector<TrackerEvents> events;
+    feed(tracker, suit, at(14ms), upright, 0, suit.nominal(), &events);  // all, the forearm's first
+    const auto through = tracker.watermark(at(14ms));
+    ASSERT_TRUE(through.has_value());
+    const auto g = tracker.due(*through);
+    ASSERT_TRUE(g.has_value());
+    EXPECT_EQ(tracker.solveAt(*g).valid, testing::kAll);
+
+    // A sensor that never reports is waited for kStartWait, then left out.
+    BodyTracker silent(skeleton(), suit.sensors);
+    Timestamp t = at(0ms);
+    for (; t <= at(0ms) + BodyTracker::kStartWait; t += kSample) {
+        feed(silent, suit, t, upright, 0, suit.nominal(), nullptr, forearm);
+        EXPECT_FALSE(silent.watermark(t).has_value()) << toNs(t);
+    }
+    feed(silent, suit, t, upright, 0, suit.nominal(), nullptr, forearm);
+    ASSERT_TRUE(silent.watermark(t).has_value());
+    EXPECT_EQ(*silent.watermark(t), t);
+}
+
 TEST(BodyTracker, AFailedCalibrationSaysWhyAndKeepsTheOneInUse) {
     // A calibration whose window passes before any sensor reported has nothing to average.
     const Suit suit;
