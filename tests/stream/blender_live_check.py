@@ -86,7 +86,7 @@ with open(csv_path, newline="") as f:
     header = next(reader)
     segments = [h[:-3] for h in header if h.endswith("_qw")]
     for r in reader:
-        v = [float(x) for x in r]
+        v = [float(x) for x in r[:1 + 7 * len(segments)]]  # not the not_measured column
         rows.append({s: Quaternion(v[1 + 7 * k:5 + 7 * k]) for k, s in enumerate(segments)})
 
 print(f"{rx.frames_received} frames received, {len(samples)} poses shown, "

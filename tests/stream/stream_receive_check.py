@@ -177,7 +177,8 @@ def read_csv(path):
         header = next(reader)
         segments = [h[:-3] for h in header if h.endswith("_qw")]
         for r in reader:
-            v = [float(x) for x in r]
+            # The numeric columns; the last one, not_measured, names the held segments.
+            v = [float(x) for x in r[:1 + 7 * len(segments)]]
             row = {"t": v[0], "q": {}, "p": {}}
             for k, name in enumerate(segments):
                 base = 1 + 7 * k
