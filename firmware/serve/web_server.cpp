@@ -118,6 +118,9 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     if (s->listenSocket >= 0) {
         (void)::listen(s->listenSocket, 128);
     }
+    // The first state document is built before any request can come: an early client (the
+    // page loading as the hub starts) never gets an empty one.
+    s->stateJson = s->buildState(s->hub.state()).dump();
     s->stateReader = std::thread([s] { s->readStateLoop(); });
     s->listener = std::thread([s] { s->server.listen_after_bind(); });
     for (int i = 0; i < 2000 && !s->server.is_running(); ++i) {
