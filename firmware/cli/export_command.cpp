@@ -11,6 +11,7 @@
 #include "board/segment.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/terminal_progress.h"
 #include "firmware/export/export.h"
 
 namespace caphub::firmware {
@@ -40,41 +41,6 @@ std::string sizeText(std::uint64_t bytes) {
     return fmt::format("{} bytes", bytes);
 }
 
-// "reading  42%" rewritten in place on a terminal, only when the percentage changes.
-class TerminalProgress {
-public:
-    TerminalProgress() : enabled_(isatty(STDERR_FILENO) == 1) {}
-    ~TerminalProgress() { done(); }
-
-    void operator()(std::string_view stage, double fraction) {
-        if (!enabled_) {
-            return;
-        }
-        const int percent = static_cast<int>(std::floor(fraction * 100));
-        if (percent == percent_ && stage == stage_) {
-            return;
-        }
-        percent_ = percent;
-        stage_ = stage;
-        fmt::print(stderr, "\rcaphub export: {:<8} {:3d}%", stage, percent);
-        std::fflush(stderr);
-        shown_ = true;
-    }
-
-    void done() {
-        if (shown_) {
-            fmt::print(stderr, "\r{:40}\r", "");
-            shown_ = false;
-        }
-    }
-
-private:
-    bool enabled_;
-    bool shown_ = false;
-    int percent_ = -1;
-    std::string stage_;
-};
-
 int runExport(const ExportArgs& a) {
     using namespace exporter;
     ExportOptions o;
@@ -96,7 +62,7 @@ int runExport(const ExportArgs& a) {
     o.stoOrientations =
         a.orientations == "segments" ? StoOrientations::Segments : StoOrientations::Sensors;
 
-    TerminalProgress progress;
+    TerminalProgress progress("caphub export", 8);
     FailureKind failure = FailureKind::Work;
     auto summary = exportRecording(
         a.recording, a.output, o, [&](std::string_view stage, double f) { progress(stage, f); },

@@ -21,6 +21,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/terminal_progress.h"
 #include "firmware/export/output_file.h"
 #include "firmware/recording/reader.h"
 #include "firmware/recording/writer.h"
@@ -41,39 +42,6 @@ struct ReprocessArgs {
     std::string calibration;
     double poseRateHz = 60;
     bool smooth = false;
-};
-
-// "fusion  42%" rewritten in place on a terminal, only when the percentage changes.
-class TerminalProgress {
-public:
-    TerminalProgress() : enabled_(isatty(STDERR_FILENO) == 1) {}
-    ~TerminalProgress() { done(); }
-    void operator()(std::string_view stage, double fraction) {
-        if (!enabled_) {
-            return;
-        }
-        const int percent = static_cast<int>(std::floor(fraction * 100));
-        if (percent == percent_ && stage == stage_) {
-            return;
-        }
-        percent_ = percent;
-        stage_ = stage;
-        fmt::print(stderr, "\rcaphub reprocess: {:<10} {:3d}%", stage, percent);
-        std::fflush(stderr);
-        shown_ = true;
-    }
-    void done() {
-        if (shown_) {
-            fmt::print(stderr, "\r{:40}\r", "");
-            shown_ = false;
-        }
-    }
-
-private:
-    bool enabled_;
-    bool shown_ = false;
-    int percent_ = -1;
-    std::string stage_;
 };
 
 // The records go straight into the new recording; the first write error is kept.
@@ -238,7 +206,7 @@ int runReprocess(const ReprocessArgs& a) {
         calibrationText = *text;
     }
     const auto wallStart = std::chrono::steady_clock::now();
-    TerminalProgress progress;
+    TerminalProgress progress("caphub reprocess", 10);
     progress("reading", 0);
     auto source = readSourceRecording(**reader);
     if (!source) {
