@@ -17,8 +17,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
-#include "firmware/runtime/capture.h"
-#include "firmware/runtime/stepped_capture.h"
+#include "firmware/runtime/hub.h"
 #include "firmware/sensor_calibration_steps.h"
 #include "fusion/calibration/accel_six_position.h"
 #include "fusion/calibration/ellipsoid_fit.h"
@@ -98,30 +97,15 @@ Result<Streams> collectVirtual(const board::Board& b, Kind kind, double duration
                                   sc.magOdrHz > 0 ? sc.magOdrHz : sc.achievedOdrHz);
         out.truth.push_back(part.constants());
     }
-    SteppedCapture capture(*suit, clock);
-    capture.runUntil(scriptStart + durationFromSeconds(durationS),
-                     [&out, scriptStart](const SensorSample& s) {
-                         if (s.sample.t >= scriptStart) {
-                             out.add(s);
-                         }
-                     });
+    CallbackStage collect([&out, scriptStart](const SensorSample& s) {
+        if (s.sample.t >= scriptStart) {
+            out.add(s);
+        }
+    });
+    (void)captureSamples(b, clock, *suit, Capture::Mode::Stepped,
+                         scriptStart + durationFromSeconds(durationS) - clock.now(), collect);
     return out;
 }
-
-// Collects every sample on the pipeline thread; read once the capture has stopped.
-class CollectorStage final : public PipelineStage {
-public:
-    explicit CollectorStage(Streams& streams) : streams_(streams) {}
-    void onSample(const SensorSample& s) override { streams_.add(s); }
-    void onEvent(const RuntimeEvent& e) override {
-        if (e.kind == RuntimeEvent::Kind::SensorLost) {
-            fmt::print(stderr, "caphub calibrate: sensor {} stopped answering\n", e.sensor);
-        }
-    }
-
-private:
-    Streams& streams_;
-};
 
 Result<Streams> collectHub(const board::Board& b, double durationS) {
     MonotonicClock clock;
@@ -130,11 +114,16 @@ Result<Streams> collectHub(const board::Board& b, double durationS) {
         return suit.error();
     }
     Streams out(b);
-    CollectorStage collector(out);
-    Capture capture(*suit, clock);
-    capture.addStage(collector);
-    capture.start(durationFromSeconds(durationS));
-    (void)capture.wait();
+    // Every sample, collected on the pipeline thread; read once the capture has stopped.
+    CallbackStage collect(
+        [&out](const SensorSample& s) { out.add(s); },
+        [](const RuntimeEvent& e) {
+            if (e.kind == RuntimeEvent::Kind::SensorLost) {
+                fmt::print(stderr, "caphub calibrate: sensor {} stopped answering\n", e.sensor);
+            }
+        });
+    (void)captureSamples(b, clock, *suit, Capture::Mode::Threaded, durationFromSeconds(durationS),
+                         collect);
     return out;
 }
 

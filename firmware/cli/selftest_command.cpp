@@ -12,8 +12,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
-#include "firmware/runtime/capture.h"
-#include "firmware/runtime/stepped_capture.h"
+#include "firmware/runtime/hub.h"
 
 namespace caphub::firmware {
 
@@ -54,18 +53,6 @@ struct SensorStats {
     }
 };
 
-class StatsStage final : public PipelineStage {
-public:
-    explicit StatsStage(std::vector<SensorStats>& stats) : stats_(stats) {}
-    void onSample(const SensorSample& s) override {
-        stats_[static_cast<std::size_t>(s.sensor)].add(s.sample);
-    }
-    void onEvent(const RuntimeEvent&) override {}
-
-private:
-    std::vector<SensorStats>& stats_;
-};
-
 int selftest(const SelftestOptions& o) {
     const auto loaded = loadCommandBoard(o.board);
     if (!loaded) {
@@ -103,25 +90,17 @@ int selftest(const SelftestOptions& o) {
     // A start-up second, then the measured one.
     const Duration startup = std::chrono::seconds(1);
     const Timestamp t0 = clock->now();
-    std::vector<std::uint64_t> samplesAtStart(b.sensors.size(), 0);
-    if (sim) {
-        SteppedCapture capture(*suit, static_cast<SimulatedClock&>(*clock));
-        capture.runUntil(t0 + startup, [](const SensorSample&) {});
-        capture.runUntil(t0 + startup + durationFromSeconds(o.seconds),
-                         [&stats](const SensorSample& s) {
-                             stats[static_cast<std::size_t>(s.sensor)].add(s.sample);
-                         });
-    } else {
-        // The hub's own pipeline: samples of the first second are not counted.
-        std::vector<SensorStats> warmup(b.sensors.size());
-        StatsStage stage(warmup);
-        Capture capture(*suit, *clock);
-        capture.addStage(stage);
-        capture.start(startup + durationFromSeconds(o.seconds));
-        (void)capture.wait();
-        stats = std::move(warmup);  // whole run; rates use the whole duration below
-    }
-    const double measuredS = sim ? o.seconds : o.seconds + toSeconds(startup);
+    // The hub's pipeline (stepped on the virtual suit): samples of the first second are not
+    // counted.
+    const Timestamp measuredFrom = t0 + startup;
+    CallbackStage tally([&stats, measuredFrom](const SensorSample& s) {
+        if (s.sample.t >= measuredFrom) {
+            stats[static_cast<std::size_t>(s.sensor)].add(s.sample);
+        }
+    });
+    (void)captureSamples(b, *clock, *suit, sim ? Capture::Mode::Stepped : Capture::Mode::Threaded,
+                         startup + durationFromSeconds(o.seconds), tally);
+    const double measuredS = o.seconds;
 
     fmt::print("{:<11} {:<9} {:<9} {:>8} {:>8} {:>9} {:>9} {:>8}  {}\n", "sensor", "identity",
                "settings", "rate Hz", "want Hz", "|acc|", "gyro dps", "mag uT", "result");

@@ -17,7 +17,7 @@
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/io/broad_csv.h"
-#include "firmware/runtime/stepped_capture.h"
+#include "firmware/runtime/hub.h"
 
 namespace caphub::firmware {
 
@@ -244,10 +244,10 @@ int sim(const SimOptions& o) {
         st.accelErr2 += (out.accMps2 - truth.accelMps2).squaredNorm();
     };
 
-    SteppedCapture capture(*suit, clock);
+    CallbackStage collect(onSample, [&events](const RuntimeEvent&) { ++events; });
     const auto wallStart = std::chrono::steady_clock::now();
-    capture.runUntil(start + Duration{motion.durationNs()}, onSample,
-                     [&events](const RuntimeEvent&) { ++events; });
+    (void)captureSamples(b, clock, *suit, Capture::Mode::Stepped,
+                         start + Duration{motion.durationNs()} - clock.now(), collect);
     const double wallS =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
     const double simS = static_cast<double>(motion.durationNs()) * 1e-9;

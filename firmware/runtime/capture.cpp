@@ -152,20 +152,34 @@ void Capture::end(Timestamp now) {
 }
 
 CaptureStats Capture::runStepped(Duration duration) {
-    started_ = clock_.now();
-    const Timestamp endAt = duration.count() > 0 ? started_ + duration : Timestamp::max();
-    Timestamp nextTick = started_;
-    while (!stopRequested() && clock_.now() < endAt) {
+    const Timestamp from = clock_.now();
+    stepUntil(duration.count() > 0 ? from + duration : Timestamp::max());
+    return finishStepped();
+}
+
+void Capture::stepUntil(Timestamp end) {
+    if (!stepping_) {
+        stepping_ = true;
+        started_ = clock_.now();
+        nextTick_ = started_;
+    }
+    while (!stopRequested() && clock_.now() < end) {
         for (auto& w : workers_) {
             w->runOnce();
             (void)drain(clock_.now(), Timestamp::max());
         }
         const Timestamp now = clock_.now();
         (void)pipeline_.runPosted(now);
-        if (now >= nextTick) {
+        if (now >= nextTick_) {
             pipeline_.tick(now);
-            nextTick = now + kTick;
+            nextTick_ = now + kTick;
         }
+    }
+}
+
+CaptureStats Capture::finishStepped() {
+    if (!stepping_) {
+        started_ = clock_.now();
     }
     end(clock_.now());
     return stats_;

@@ -70,6 +70,10 @@ public:
     // Stepped mode: runs until `duration` of the clock has passed (or requestStop()), then the
     // stages finish.
     CaptureStats runStepped(Duration duration);
+    // Stepped mode, in pieces: moves the capture on until the clock reaches `end` (or
+    // requestStop()) without finishing it; finishStepped() ends it. runStepped() is the two.
+    void stepUntil(Timestamp end);
+    CaptureStats finishStepped();
     Mode mode() const { return mode_; }
     Pipeline& pipeline() { return pipeline_; }
 
@@ -103,6 +107,8 @@ private:
     std::atomic<bool> stopRequested_{false};
     std::thread thread_;
     Timestamp started_{};
+    Timestamp nextTick_{};
+    bool stepping_ = false;
     CaptureStats stats_;
     LatencyWindow latency_;  // the most recent samples' data-ready -> pipeline latencies
 };

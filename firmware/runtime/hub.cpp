@@ -52,8 +52,10 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
     // The order is the data's: the recorder takes the raw sample before fusion, fusion's
     // orientation before the body, the body's pose before the consumers.
     capture_.addStage(recorder_);
-    capture_.addStage(fusion_);
-    capture_.addStage(body_);
+    if (options_.solve) {
+        capture_.addStage(fusion_);
+        capture_.addStage(body_);
+    }
     for (PipelineStage* stage : options_.stages) {
         capture_.addStage(*stage);
     }
@@ -62,7 +64,7 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
             std::make_unique<StatusStage>(board, capture_, &recorder_, options_.statusPath, clock);
         capture_.addStage(*status_);
     }
-    if (options_.previewSinks.liveCount() > 0) {
+    if (options_.solve && options_.previewSinks.liveCount() > 0) {
         if (!options_.previewSkin) {
             previewError_ = "no skin to render";
         } else {
@@ -76,6 +78,9 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
     // send never delays a sample or a pose, and normal work never delays a send.
     const ThreadPolicy streamPolicy = options_.threads.lowered(2);
     for (const board::StreamConfig& config : options_.streams) {
+        if (!options_.solve) {
+            break;  // no poses to stream
+        }
         streams_.push_back(std::make_unique<PoseStream>(config, poses_, clock_, [streamPolicy] {
             (void)applyToThisThread(streamPolicy, "caphub-stream");
         }));
@@ -119,6 +124,24 @@ CaptureStats Hub::runStepped(Duration duration) {
     CaptureStats stats = capture_.runStepped(duration);
     stopStreams();
     return stats;
+}
+
+CaptureStats Hub::run(Duration duration) {
+    if (options_.mode == Capture::Mode::Stepped) {
+        return runStepped(duration);
+    }
+    start(duration);
+    return wait();
+}
+
+CaptureStats captureSamples(const board::Board& board, Clock& clock, board::SuitHardware& suit,
+                            Capture::Mode mode, Duration duration, PipelineStage& stage) {
+    HubOptions options;
+    options.solve = false;
+    options.mode = mode;
+    options.stages.push_back(&stage);
+    Hub hub(board, clock, suit, std::move(options));
+    return hub.run(duration);
 }
 
 Result<void> Hub::onPipeline(const char* what, std::function<void(Timestamp)> fn) {

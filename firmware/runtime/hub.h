@@ -57,6 +57,10 @@ struct HubOptions {
     // Threaded (a capture in real time) or stepped (the virtual suit on a stepped clock:
     // deterministic, as fast as the machine allows; run with runStepped()).
     Capture::Mode mode = Capture::Mode::Threaded;
+    // False: the samples only - no fusion, no body (and so no poses, preview or streams), for
+    // the commands that want the raw samples of a capture through their own stages
+    // (calibrate, selftest, sim).
+    bool solve = true;
     // The longest a command waits for the pipeline thread to carry it out.
     Duration commandTimeout = std::chrono::seconds(5);
 };
@@ -100,6 +104,9 @@ public:
     CaptureStats wait();
     // Stepped mode: the whole capture on the calling thread, for `duration` of the clock.
     CaptureStats runStepped(Duration duration);
+    // The whole capture for `duration` of its clock, in either mode (threaded: start() and
+    // wait(); stepped: runStepped()).
+    CaptureStats run(Duration duration);
 
     // Commands, from any thread; each returns once the pipeline has carried it out.
     // A new take in the recordings folder, named with the date, time and `name` (letters,
@@ -158,6 +165,12 @@ private:
     std::uint64_t takes_ = 0;
     bool started_ = false;
 };
+
+// The samples and events of a capture of `duration` (of its clock), handed to `stage`: a Hub
+// that does not solve (HubOptions::solve false), threaded or stepped. For the commands that
+// measure the raw samples (calibrate, selftest, sim).
+CaptureStats captureSamples(const board::Board& board, Clock& clock, board::SuitHardware& suit,
+                            Capture::Mode mode, Duration duration, PipelineStage& stage);
 
 // A take's file name: "YYYYmmdd-HHMMSS[-name].cap" in local time; an error for a name with
 // other characters than letters, digits, '-', '_' and '.', or longer than 64.

@@ -25,6 +25,35 @@ public:
     virtual void finish(Timestamp now) { (void)now; }
 };
 
+// A stage made of callbacks: for a command that only wants the samples (and events) of a
+// capture - calibrate, selftest, sim - and for tests.
+class CallbackStage final : public PipelineStage {
+public:
+    using SampleFn = std::function<void(const SensorSample&)>;
+    using EventFn = std::function<void(const RuntimeEvent&)>;
+
+    explicit CallbackStage(SampleFn onSample = {}, EventFn onEvent = {})
+        : onSample_(std::move(onSample)), onEvent_(std::move(onEvent)) {}
+    void onSample(const SensorSample& s) override {
+        if (onSample_) {
+            onSample_(s);
+        }
+    }
+    void onEvent(const RuntimeEvent& e) override {
+        if (onEvent_) {
+            onEvent_(e);
+        }
+    }
+    void set(SampleFn onSample, EventFn onEvent) {
+        onSample_ = std::move(onSample);
+        onEvent_ = std::move(onEvent);
+    }
+
+private:
+    SampleFn onSample_;
+    EventFn onEvent_;
+};
+
 class Pipeline {
 public:
     // The stages get everything in the order they were added.
