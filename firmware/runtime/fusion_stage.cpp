@@ -183,6 +183,20 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
     }
 }
 
+const char* key(MagMode m) {
+    switch (m) {
+        case MagMode::Calibrated:
+            return "calibrated";
+        case MagMode::Raw:
+            return "uncorrected";
+        case MagMode::Estimating:
+            return "gyro-only";
+        case MagMode::Online:
+            return "online-hard-iron";
+    }
+    return "?";
+}
+
 MagMode FusionStage::magMode(int sensor) const {
     if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
         !onlineMag_[static_cast<std::size_t>(sensor)]) {

@@ -29,6 +29,9 @@ enum class MagMode {
     Online,      // magnetic heading with the online hard-iron estimate subtracted
 };
 const char* toString(MagMode m);
+// A short name for documents (the status JSON): "calibrated", "uncorrected", "gyro-only",
+// "online-hard-iron".
+const char* key(MagMode m);
 
 class FusionStage final : public PipelineStage {
 public:

@@ -62,6 +62,9 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
     if (!options_.statusPath.empty()) {
         status_ =
             std::make_unique<StatusStage>(board, capture_, &recorder_, options_.statusPath, clock);
+        if (options_.solve) {
+            status_->setFusion(&fusion_);
+        }
         capture_.addStage(*status_);
     }
     if (options_.solve && options_.previewSinks.liveCount() > 0) {

@@ -126,6 +126,9 @@ StatusSnapshot StatusStage::snapshot(Timestamp now, bool running) const {
             o.dropped = c.dropped.load();
             o.lost = c.lost.load();
             o.events = events_[i];
+            if (fusion_ != nullptr) {
+                o.heading = key(fusion_->magMode(static_cast<int>(i)));
+            }
             s.sensors.push_back(std::move(o));
         }
     }
@@ -200,6 +203,9 @@ std::string statusJson(const StatusSnapshot& s) {
         j["dropped"] = o.dropped;
         j["lost"] = o.lost;
         j["events"] = o.events;
+        if (!o.heading.empty()) {
+            j["heading"] = o.heading;
+        }
         sensors.push_back(j);
     }
     doc["sensors"] = sensors;

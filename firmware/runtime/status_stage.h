@@ -16,6 +16,7 @@
 
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
+#include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/latency_window.h"
 #include "firmware/runtime/recorder_stage.h"
 
@@ -34,6 +35,8 @@ struct StatusSnapshot {
         std::uint64_t dropped = 0;
         std::uint64_t lost = 0;
         std::uint64_t events = 0;
+        // Where its heading comes from (key(MagMode)); empty: no fusion in this capture.
+        std::string heading;
     };
     struct Bus {
         std::string name;
@@ -72,6 +75,8 @@ public:
     void onSample(const SensorSample& s) override;
     void onEvent(const RuntimeEvent& e) override;
     void onTick(Timestamp now) override;
+    // The capture's fusion, for each sensor's heading mode (null: none). Before the capture.
+    void setFusion(const FusionStage* fusion) { fusion_ = fusion; }
     // Writes the last document (running: false) and waits for it to be written.
     void finish(Timestamp now) override;
 
@@ -90,6 +95,7 @@ private:
     const board::Board& board_;
     const Capture& capture_;
     const RecorderStage* recorder_;
+    const FusionStage* fusion_ = nullptr;
     std::filesystem::path path_;
     Clock& clock_;
     // The pipeline thread's side.

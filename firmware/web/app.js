@@ -106,7 +106,7 @@ function showState(s) {
     const tr = document.createElement('tr');
     if (!x.online) tr.className = 'off';
     for (const v of [x.name, x.segment, fmt(x.rate_hz), x.lost, x.read_errors,
-                     x.gyro_clip_events ?? 0]) {
+                     x.gyro_clip_events ?? 0, x.heading ?? '']) {
       const td = document.createElement('td');
       td.textContent = v;
       tr.appendChild(td);

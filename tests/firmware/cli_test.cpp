@@ -16,6 +16,7 @@
 
 namespace {
 
+using ::testing::AnyOf;
 using ::testing::HasSubstr;
 
 using caphub::testing::caphub;
@@ -126,6 +127,15 @@ TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
     EXPECT_THAT(r.output, HasSubstr("\"running\": false"));
     EXPECT_THAT(r.output, HasSubstr("\"name\": \"l_forearm\""));
     EXPECT_THAT(r.output, HasSubstr("\"latency_ms\""));
+    // Each sensor says where its heading comes from; with no calibration file, not from a
+    // calibrated magnetometer (docs/fusion.md, "No magnetometer calibration").
+    const std::regex heading("\"heading\": \"([a-z-]+)\"");
+    int headings = 0;
+    for (auto it = std::sregex_iterator(r.output.begin(), r.output.end(), heading);
+         it != std::sregex_iterator(); ++it, ++headings) {
+        EXPECT_THAT((*it)[1].str(), AnyOf("uncorrected", "gyro-only", "online-hard-iron"));
+    }
+    EXPECT_EQ(headings, 10);
     // A file named that is not there is a file given that cannot be used (2); no status where
     // the hub keeps it by default is the answer "no hub" (1, tests/firmware/file_faults_cli_test).
     const CliRun none = caphub("status --file " + dir + "/absent.json");
