@@ -26,12 +26,13 @@ case "${1:-}" in
 run)
     # Only what the program needs: its packages, and the program alone (no tests).
     bash toolchain/bootstrap.sh run
-    cmake --preset release -DCAPHUB_BUILD_TESTS=OFF -DCAPHUB_BUILD_BENCHMARKS=OFF >/dev/null
-    cmake --build --preset release --target caphub
+    # (The release build's -O2 without its debug information: a third less compile time.)
+    cmake --preset program >/dev/null
+    cmake --build --preset program
     out="$root/out"
     rm -rf "$out/recordings" "$out/exports" "$out/state" "$out/preview"
     mkdir -p "$out/recordings" "$out/exports"
-    caphub=build/release/bin/caphub
+    caphub=build/program/bin/caphub
     board=board/sim-suit.toml
     "$caphub" boards validate "$board" --quiet
     # The main job: `caphub serve` on the default virtual suit (17 sensors, paced to real time,
