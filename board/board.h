@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "board/body_layout.h"
 #include "board/segment.h"
 #include "board/subject.h"
 #include "hal/chip_info.h"
@@ -108,6 +109,13 @@ struct RuntimeConfig {
     SourceLocation where;
 };
 
+// [body]: which segments the suit covers (board/body_layout.h, docs/sparse.md). Without the
+// table the layout is none: a bench board of a few sensors anywhere.
+struct BodyConfig {
+    std::optional<BodyLayout> layout;
+    SourceLocation where;  // of layout
+};
+
 struct Board {
     std::filesystem::path path;
     std::string text;  // the file as loaded: recordings embed it
@@ -120,6 +128,7 @@ struct Board {
     OutputsConfig outputs;
     SubjectConfig subject;
     RuntimeConfig runtime;
+    BodyConfig body;
 };
 
 // True when every bus of the board is simulated: the board is a virtual suit.

@@ -278,6 +278,7 @@ private:
     void parseMuxes(const toml::table& root);
     void parseSensors(const toml::table& root);
     void parseSensor(const toml::table& t, const std::string& path);
+    void parseBody(const toml::table& root);
     void parseDisplay(const toml::table& root);
     void parseOutputs(const toml::table& root);
     void parseRuntime(const toml::table& root);
@@ -322,7 +323,7 @@ private:
 void Parser::run(const toml::table& root) {
     rejectUnknownKeys(root, "",
                       {"schema", "name", "description", "subject", "bus", "mux", "sensor",
-                       "display", "outputs", "runtime"});
+                       "display", "outputs", "runtime", "body"});
     if (auto v = getInteger(root, "schema", "", true,
                             fmt::format("the board file format version, {}", kSchemaVersion), 1,
                             kSchemaVersion)) {
@@ -338,6 +339,7 @@ void Parser::run(const toml::table& root) {
     parseBuses(root);
     parseMuxes(root);
     parseSensors(root);
+    parseBody(root);
     parseDisplay(root);
     parseOutputs(root);
     parseRuntime(root);
@@ -820,6 +822,46 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
     }
     sensorPaths_.push_back(path);
     board_.sensors.push_back(std::move(s));
+}
+
+void Parser::parseBody(const toml::table& root) {
+    std::vector<Segment> segments;
+    for (const auto& s : board_.sensors) {
+        segments.push_back(s.segment);
+    }
+    const toml::table* t = subTable(root, "body");
+    if (t == nullptr) {
+        // No layout named: a board of a few sensors on a bench is fine, but a body without a
+        // pelvis sensor cannot be solved; say so without failing the board.
+        if (!board_.sensors.empty() && !segmentsTaken_.contains(Segment::Pelvis)) {
+            out_.warnings.emplace_back(
+                SourceLocation{file_, 1, 1}, "body",
+                "no sensor on the pelvis: the body's poses will hold the pelvis upright, facing "
+                "north (a suit needs one; docs/sparse.md)");
+        }
+        return;
+    }
+    rejectUnknownKeys(*t, "body", {"layout"});
+    const std::string expected = "\"full\", \"upper10\", \"lower7\" or \"sparse\"";
+    const auto v = getString(*t, "layout", "body", true, expected);
+    if (!v) {
+        return;
+    }
+    const toml::source_region where = t->get("layout")->source();
+    const auto layout = parseBodyLayout(*v);
+    if (!layout) {
+        error(where, "body.layout", fmt::format("unknown layout '{}' (expected {})", *v, expected));
+        return;
+    }
+    if (segmentsTaken_.size() != board_.sensors.size()) {
+        return;  // a sensor's segment is already in error
+    }
+    if (const std::string why = layoutMismatch(*layout, segments); !why.empty()) {
+        error(where, "body.layout", why);
+        return;
+    }
+    board_.body.layout = *layout;
+    board_.body.where = loc(where);
 }
 
 void Parser::parseDisplay(const toml::table& root) {

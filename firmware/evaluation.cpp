@@ -14,6 +14,7 @@
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/hub.h"
 #include "fusion/body/kinematics.h"
+#include "fusion/body/pose_solver.h"
 #include "fusion/body/skeleton.h"
 
 namespace caphub::firmware {
@@ -41,6 +42,15 @@ std::string calibrationName(const BodyStage& stage) {
         return "nominal mountings (none)";
     }
     return std::string(body::toString(stage.calibration().method));
+}
+
+// The segments the board's sensors measure (docs/sparse.md): the scores are over these.
+std::uint32_t measuredSegments(const board::Board& b) {
+    body::SegmentMask sensors = 0;
+    for (const auto& sc : b.sensors) {
+        sensors |= body::bit(sc.segment);
+    }
+    return body::PoseSolver(sensors).coveredSegments();
 }
 
 // Scores each pose the body publishes against the simulation's truth at its time, after the
@@ -310,6 +320,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.leadInS = static_cast<double>(clip->leadInNs) * 1e-9;
     r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
     PoseScoringStage scoring(*clip->trajectory, start, clip->leadInNs);
+    scoring.scorer().setMeasured(measuredSegments(b));
     hubOptions.stages.push_back(&scoring);
     SampleKeepingStage keeping;
     if (o.reprocessSmooth) {
@@ -385,6 +396,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
                                           ? *bodyOptions.dimensions
                                           : *body::dimensionsFromSubject(b.subject);
         ScoringSink sink(*clip->trajectory, start, clip->leadInNs, dims);
+        sink.scorer.setMeasured(measuredSegments(b));
         const auto smoothStart = std::chrono::steady_clock::now();
         auto done = reprocess(b, keeping.recording, ro, sink);
         r.smoothWallS =
@@ -508,26 +520,31 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n"
             "      \"mean_height_error_m\": {:.6f},\n      \"max_height_error_m\": {:.6f},\n"
             "      \"independent_mean_angle_deg\": {:.6f},\n"
-            "      \"independent_mean_position_m\": {:.6f},\n      \"joints\": [",
+            "      \"independent_mean_position_m\": {:.6f},\n"
+            "      \"measured_joints\": {},\n      \"measured_independent_joints\": {},\n"
+            "      \"root_translation_measured\": {},\n      \"joints\": [",
             c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
             r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
             r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
             s.finalDriftM, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM, s.maxHeightErrorM,
-            s.independentMeanAngleDeg, s.independentMeanPositionM);
+            s.independentMeanAngleDeg, s.independentMeanPositionM, s.measuredJoints,
+            s.measuredIndependentJoints, body::rootTranslationMeasured(s.measured));
         for (int i = 0; i < body::kSegmentCount; ++i) {
             const auto u = static_cast<std::size_t>(i);
             out += fmt::format(
                 "{}\n        {{\"joint\": \"{}\", \"segment\": \"{}\", \"angle_deg\": {:.6f}, "
-                "\"position_m\": {:.6f}}}",
+                "\"position_m\": {:.6f}, \"measured\": {}}}",
                 i == 0 ? "" : ",", body::joints()[u].name,
-                board::segmentName(static_cast<board::Segment>(i)), s.angleDeg[u], s.positionM[u]);
+                board::segmentName(static_cast<board::Segment>(i)), s.angleDeg[u], s.positionM[u],
+                ((s.measured >> i) & 1U) != 0);
         }
         out += "\n      ],\n      \"independent_joints\": [";
         for (std::size_t j = 0; j < body::independentJoints().size(); ++j) {
             out += fmt::format(
-                "{}\n        {{\"joint\": \"{}\", \"angle_deg\": {:.6f}, \"position_m\": {:.6f}}}",
+                "{}\n        {{\"joint\": \"{}\", \"angle_deg\": {:.6f}, \"position_m\": {:.6f}, "
+                "\"measured\": {}}}",
                 j == 0 ? "" : ",", body::independentJoints()[j].name, s.independentAngleDeg[j],
-                s.independentPositionM[j]);
+                s.independentPositionM[j], body::independentJointMeasured(s.measured, j));
         }
         out += "\n      ],\n      \"gyro_clipped\": {";
         for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {

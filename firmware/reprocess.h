@@ -16,6 +16,7 @@
 #include "board/board.h"
 #include "firmware/recording/format.h"
 #include "firmware/recording/reader.h"
+#include "firmware/recording/writer.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/pipeline.h"
 #include "firmware/runtime/pose_feed.h"
@@ -54,6 +55,38 @@ Result<SourceRecording> readSourceRecording(RecordingReader& reader);
 class ReprocessSink : public RecordSink {
 public:
     virtual void rawSample(int sensor, const hal::ImuSample& s) = 0;
+};
+
+// A sink that writes the records straight into a recording (`caphub reprocess`, the import of
+// BROAD-layout streams); the first write error is kept.
+class RecordingWriterSink final : public ReprocessSink {
+public:
+    explicit RecordingWriterSink(RecordingWriter& w) : w_(w) {}
+    void rawSample(int sensor, const hal::ImuSample& s) override {
+        check(w_.writeRawSample(sensor, s));
+    }
+    void orientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) override {
+        check(w_.writeOrientation(sensor, t, q));
+    }
+    void pose(Timestamp t, const Eigen::Vector3f& rootM, std::span<const Eigen::Quaternionf> joints,
+              std::uint32_t notMeasured) override {
+        check(w_.writePose(t, rootM, joints, notMeasured));
+    }
+    void event(Timestamp t, cap::EventKind kind, int sensor, int error,
+               std::string_view text) override {
+        check(w_.writeEvent(t, kind, sensor, error, text));
+    }
+    void metadata(Timestamp t, std::string_view toml) override { check(w_.writeMetadata(t, toml)); }
+    void marker(Timestamp t, std::string_view label) override { check(w_.writeMarker(t, label)); }
+    int firstError = 0;
+
+private:
+    void check(int r) {
+        if (r != 0 && firstError == 0) {
+            firstError = r;
+        }
+    }
+    RecordingWriter& w_;
 };
 
 // The body calibration to apply.

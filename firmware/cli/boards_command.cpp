@@ -8,6 +8,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "fusion/body/pose_solver.h"
 
 namespace caphub::firmware {
 
@@ -49,6 +50,39 @@ std::string placeText(const Board& b, const board::SensorConfig& s) {
     return where;
 }
 
+// The body layout (docs/sparse.md): declared or as the sensors make it, and what it leaves
+// unmeasured.
+std::string bodyText(const Board& b) {
+    std::vector<board::Segment> segments;
+    body::SegmentMask sensors = 0;
+    for (const auto& s : b.sensors) {
+        segments.push_back(s.segment);
+        sensors |= body::bit(s.segment);
+    }
+    const auto matched = board::matchLayout(segments);
+    std::string out = b.body.layout
+                          ? fmt::format("  body: layout {}", board::toString(*b.body.layout))
+                      : matched ? fmt::format("  body: no [body] layout (the sensors make {})",
+                                              board::toString(*matched))
+                                : std::string("  body: no [body] layout, no sensor on the pelvis");
+    const body::SegmentMask covered = body::PoseSolver(sensors).coveredSegments();
+    std::string held;
+    for (int i = 0; i < body::kSegmentCount; ++i) {
+        if (!body::has(covered, i)) {
+            held += fmt::format("{}{}", held.empty() ? "" : " ",
+                                board::segmentName(static_cast<board::Segment>(i)));
+        }
+    }
+    out += held.empty()
+               ? "; every segment measured\n"
+               : fmt::format("; not measured (held in the neutral standing pose): {}\n", held);
+    if (!body::has(covered, body::idx(board::Segment::LHindfoot)) ||
+        !body::has(covered, body::idx(board::Segment::RHindfoot))) {
+        out += "  root translation: not measured (it needs a sensor on each foot)\n";
+    }
+    return out;
+}
+
 void describe(const Board& b, const std::vector<BusLoad>& loads) {
     fmt::print("board {} ({})\n", b.name, b.path.string());
     if (!b.description.empty()) {
@@ -64,6 +98,7 @@ void describe(const Board& b, const std::vector<BusLoad>& loads) {
                 : std::string("normal scheduling"),
             b.runtime.cpus.empty() ? "" : fmt::format(", CPUs {}", fmt::join(b.runtime.cpus, ",")));
     }
+    fmt::print("{}", bodyText(b));
     fmt::print("{} sensors on {} buses, {} muxes\n", b.sensors.size(), b.buses.size(),
                b.muxes.size());
     for (const BusLoad& load : loads) {

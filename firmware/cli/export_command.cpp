@@ -91,7 +91,8 @@ int runExport(const ExportArgs& a) {
                                  board::segmentName(span.segment), span.fromS, span.toS);
         }
         fmt::print(stderr,
-                   "caphub export: segments not measured (their sensor out; held at their last "
+                   "caphub export: segments not measured (no sensor on them, or their sensor out; "
+                   "held at their last "
                    "measured rotation): {}\n",
                    spans);
     }

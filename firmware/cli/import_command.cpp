@@ -1,6 +1,7 @@
-// caphub import: other systems' recordings into a .cap with raw samples (docs/import.md).
-// Today: Xsens MT Manager text exports, one file per sensor, with a small mapping file from
-// sensor id to segment and the subject's height.
+// caphub import: other systems' recordings into a .cap with raw samples (docs/import.md):
+// Xsens MT Manager text exports, one file per sensor, with a small mapping file from sensor id
+// to segment and the subject's height; and caphub's own per-sensor streams in the BROAD layout
+// (`caphub sim --all`, firmware/cli/import_broad.*).
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -17,6 +18,7 @@
 #include "board/loader.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/import_broad.h"
 #include "firmware/cli/info.h"
 #include "firmware/io/xsens_text.h"
 #include "firmware/recording/writer.h"
@@ -33,17 +35,20 @@ struct ImportArgs {
     std::string map;
     std::string output;
     double magFieldUt = 50;
-    std::string calibrate = "npose";  // the pose held at the start: npose, tpose or none
+    // The pose held at the start: npose, tpose or none; empty: npose for Xsens, none for BROAD.
+    std::string calibrate;
     double poseRateHz = 60;
+    std::string format = "auto";  // auto, xsens, broad
+    std::string board;            // BROAD: the board the streams were simulated on
 };
 
 // The mapping file: `height_m = 1.80` (optional) and a [sensors] table of device id = segment.
 struct ImportMap {
-    double heightM = 1.75;
+    std::optional<double> heightM;
     std::map<std::string, board::Segment> segmentOf;
 };
 
-Result<ImportMap> readImportMap(const std::string& path) {
+Result<ImportMap> readImportMap(const std::string& path, bool needSensors) {
     auto text = readInputFile(path);
     if (!text) {
         return text.error();
@@ -99,7 +104,7 @@ Result<ImportMap> readImportMap(const std::string& path) {
                                              where(node), key.str())};
         }
     }
-    if (m.segmentOf.empty()) {
+    if (m.segmentOf.empty() && needSensors) {
         return Error{EINVAL, fmt::format("{}: no [sensors] table (sensor id = \"segment\")", path)};
     }
     return m;
@@ -125,8 +130,48 @@ std::string importedBoardText(const std::vector<XsensFile>& files,
     return b;
 }
 
-int runImport(const ImportArgs& a) {
-    auto map = readImportMap(a.map);
+int runXsensImport(const ImportArgs& a);
+
+int runImport(const ImportArgs& given) {
+    ImportArgs a = given;
+    const bool broad = a.format == "broad" || (a.format == "auto" && looksLikeBroad(a.files));
+    if (!broad) {
+        if (a.map.empty()) {
+            fmt::print(stderr,
+                       "caphub import: Xsens text exports need --map (sensor id = segment); "
+                       "docs/import.md\n");
+            return kExitUsage;
+        }
+        if (!a.board.empty()) {
+            fmt::print(stderr, "caphub import: --board is for BROAD-layout streams only\n");
+            return kExitUsage;
+        }
+        if (a.calibrate.empty()) {
+            a.calibrate = "npose";
+        }
+        return runXsensImport(a);
+    }
+    BroadImportArgs b;
+    b.inputs = a.files;
+    b.output = a.output;
+    b.board = a.board;
+    b.calibrate = a.calibrate.empty() ? "none" : a.calibrate;
+    b.poseRateHz = a.poseRateHz;
+    if (!a.map.empty()) {
+        auto map = readImportMap(a.map, false);
+        if (!map) {
+            fmt::print(stderr, "caphub import: {}\n", map.error().message);
+            return kExitUsage;
+        }
+        b.segmentOf = map->segmentOf;
+        b.heightM = map->heightM;
+        b.mapPath = a.map;
+    }
+    return runBroadImport(b);
+}
+
+int runXsensImport(const ImportArgs& a) {
+    auto map = readImportMap(a.map, true);
     if (!map) {
         fmt::print(stderr, "caphub import: {}\n", map.error().message);
         return kExitUsage;
@@ -161,7 +206,7 @@ int runImport(const ImportArgs& a) {
         files.push_back(std::move(*f));
     }
 
-    const std::string boardText = importedBoardText(files, segments, map->heightM);
+    const std::string boardText = importedBoardText(files, segments, map->heightM.value_or(1.75));
     const board::LoadResult loaded = board::loadBoardText(boardText, "imported board");
     if (!loaded.ok()) {
         fmt::print(stderr, "caphub import: the board made for the take does not load: {}\n",
@@ -367,11 +412,22 @@ int runImport(const ImportArgs& a) {
 void addImportCommand(CLI::App& app, int& exitCode) {
     auto a = std::make_shared<ImportArgs>();
     CLI::App* cmd = app.add_subcommand(
-        "import", "Import other systems' recordings (Xsens MT Manager text exports) into a .cap");
-    cmd->add_option("FILES", a->files, "The sensors' files, one per sensor")->required();
-    cmd->add_option("--map", a->map,
-                    "TOML: height_m = H and a [sensors] table of sensor id = \"segment\"")
+        "import",
+        "Import recordings into a .cap: Xsens MT Manager text exports, or caphub's own "
+        "BROAD-layout streams (caphub sim --all)");
+    cmd->add_option("FILES", a->files,
+                    "The sensors' files, one per sensor (BROAD: or the folder holding them)")
         ->required();
+    cmd->add_option("--map", a->map,
+                    "TOML: height_m = H and a [sensors] table of sensor id = \"segment\" "
+                    "(required for Xsens; BROAD: overrides the files' segments)");
+    cmd->add_option("--format", a->format,
+                    "xsens, broad, or auto (broad for a folder or .csv/.csv.gz files)")
+        ->check(CLI::IsMember({"auto", "xsens", "broad"}))
+        ->capture_default_str();
+    cmd->add_option("--board", a->board,
+                    "BROAD: the board the streams were simulated on (nominal mountings and "
+                    "positions); default: the one their comment lines name");
     cmd->add_option("-o,--output", a->output, "The .cap to write (not overwritten)")->required();
     cmd->add_option("--mag-field-ut", a->magFieldUt,
                     "The local field in uT: magnetometer units normalised to it are scaled by it")
@@ -379,9 +435,8 @@ void addImportCommand(CLI::App& app, int& exitCode) {
         ->capture_default_str();
     cmd->add_option("--calibrate", a->calibrate,
                     "Poses: the pose the subject holds for the first second (npose, tpose), or "
-                    "none (nominal mountings)")
-        ->check(CLI::IsMember({"npose", "tpose", "none"}))
-        ->capture_default_str();
+                    "none (nominal mountings); default npose for Xsens, none for BROAD")
+        ->check(CLI::IsMember({"npose", "tpose", "none"}));
     cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
         ->check(CLI::Range(1.0, 1000.0))
         ->capture_default_str();

@@ -163,7 +163,8 @@ Result<RecordingSummary> summarizeRecording(const std::string& path) {
         }
     }
     fmt::format_to(std::back_inserter(out),
-                   "\nsegments not measured (their sensor out; held in the poses): {}",
+                   "\nsegments not measured (no sensor on them, or their sensor out; held in the "
+                   "poses): {}",
                    gaps.empty() ? "none\n" : "\n");
     for (const auto& [j, spans] : gaps) {
         const std::string name =

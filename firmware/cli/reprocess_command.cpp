@@ -44,37 +44,6 @@ struct ReprocessArgs {
     bool smooth = false;
 };
 
-// The records go straight into the new recording; the first write error is kept.
-class WriterSink final : public ReprocessSink {
-public:
-    explicit WriterSink(RecordingWriter& w) : w_(w) {}
-    void rawSample(int sensor, const hal::ImuSample& s) override {
-        check(w_.writeRawSample(sensor, s));
-    }
-    void orientation(int sensor, Timestamp t, const Eigen::Quaternionf& q) override {
-        check(w_.writeOrientation(sensor, t, q));
-    }
-    void pose(Timestamp t, const Eigen::Vector3f& rootM, std::span<const Eigen::Quaternionf> joints,
-              std::uint32_t notMeasured) override {
-        check(w_.writePose(t, rootM, joints, notMeasured));
-    }
-    void event(Timestamp t, cap::EventKind kind, int sensor, int error,
-               std::string_view text) override {
-        check(w_.writeEvent(t, kind, sensor, error, text));
-    }
-    void metadata(Timestamp t, std::string_view toml) override { check(w_.writeMetadata(t, toml)); }
-    void marker(Timestamp t, std::string_view label) override { check(w_.writeMarker(t, label)); }
-    int firstError = 0;
-
-private:
-    void check(int r) {
-        if (r != 0 && firstError == 0) {
-            firstError = r;
-        }
-    }
-    RecordingWriter& w_;
-};
-
 // The new recording's header: the source's metadata, the sensor calibration replaced when
 // another was given, and a [reprocess] table saying what was done. Nothing that changes from
 // run to run (no clock time): the same input gives the same file.
@@ -240,7 +209,7 @@ int runReprocess(const ReprocessArgs& a) {
         progress.done();
         return fail(exitCodeForCreate(writer.error().code), writer.error().message);
     }
-    WriterSink sink(**writer);
+    RecordingWriterSink sink(**writer);
     auto summary = reprocess(*board, *source, o, sink);
     const int closed = (*writer)->close();
     progress.done();

@@ -88,8 +88,20 @@ bool parseNumber(std::string_view s, bool allowNan, double& out) {
     return r.ec == std::errc{} && r.ptr == end && std::isfinite(out);
 }
 
-Error lineError(const std::filesystem::path& path, std::size_t line, const std::string& what) {
-    return Error{EINVAL, fmt::format("{}:{}: {}", path.string(), line, what)};
+// "file:line:column: what" (column 1-based, in characters of the line).
+Error lineError(const std::filesystem::path& path, std::size_t line, const std::string& what,
+                std::size_t column = 1) {
+    return Error{EINVAL, fmt::format("{}:{}:{}: {}", path.string(), line, column, what)};
+}
+
+// The column (1-based) where a field, a view into `line`, starts.
+std::size_t columnOf(const std::string& line, std::string_view field) {
+    return static_cast<std::size_t>(field.data() - line.data()) + 1;
+}
+
+// The column just past the last character of `line` (where a missing field would start).
+std::size_t endColumn(const std::string& line) {
+    return line.size() + 1;
 }
 
 // "sampling_rate_hz=285.714286" inside the comment line.
@@ -168,7 +180,8 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
             if (trim(fields[i]) != kColumns[i]) {
                 return lineError(path, lineNo,
                                  fmt::format("header column {}: expected '{}', got '{}'", i + 1,
-                                             kColumns[i], trim(fields[i])));
+                                             kColumns[i], trim(fields[i])),
+                                 columnOf(line, fields[i]));
             }
         }
         columns = fields.size();
@@ -189,15 +202,17 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
         }
         const auto fields = splitCommas(l);
         if (fields.size() != columns) {
-            return lineError(path, lineNo,
-                             fmt::format("expected {} fields, got {}", columns, fields.size()));
+            return lineError(
+                path, lineNo, fmt::format("expected {} fields, got {}", columns, fields.size()),
+                fields.size() > columns ? columnOf(line, fields[columns]) : endColumn(line));
         }
         for (std::size_t i = 0; i < columns; ++i) {
             const bool nanOk = i >= kImuColumns && i < kImuColumns + 4;  // opt_* may be nan
             if (!parseNumber(fields[i], nanOk, v[i])) {
                 return lineError(path, lineNo,
                                  fmt::format("field '{}': expected a {}number, got '{}'",
-                                             kColumns[i], nanOk ? "" : "finite ", trim(fields[i])));
+                                             kColumns[i], nanOk ? "" : "finite ", trim(fields[i])),
+                                 columnOf(line, fields[i]));
             }
         }
         fusion::ImuSample s;
@@ -208,14 +223,16 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
         if (!trial.samples.empty() && !(s.tS > trial.samples.back().tS)) {
             return lineError(path, lineNo,
                              fmt::format("expected t to increase, got {} after {}", s.tS,
-                                         trial.samples.back().tS));
+                                         trial.samples.back().tS),
+                             columnOf(line, fields[0]));
         }
         trial.samples.push_back(s);
         if (withTruth) {
             if (v[14] != 0.0 && v[14] != 1.0) {
                 return lineError(
                     path, lineNo,
-                    fmt::format("field 'movement': expected 0 or 1, got '{}'", trim(fields[14])));
+                    fmt::format("field 'movement': expected 0 or 1, got '{}'", trim(fields[14])),
+                    columnOf(line, fields[14]));
             }
             trial.truth.emplace_back(v[10], v[11], v[12], v[13]);
             trial.movement.push_back(v[14] == 1.0);

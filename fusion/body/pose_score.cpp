@@ -7,6 +7,25 @@
 
 namespace caphub::body {
 
+namespace {
+
+bool segmentMeasured(std::uint32_t measured, int segment) {
+    return ((measured >> segment) & 1U) != 0;
+}
+
+}  // namespace
+
+bool independentJointMeasured(std::uint32_t measured, std::size_t j) {
+    const IndependentJoint& ij = independentJoints()[j];
+    return segmentMeasured(measured, ij.distal) &&
+           (ij.proximal < 0 || segmentMeasured(measured, ij.proximal));
+}
+
+bool rootTranslationMeasured(std::uint32_t measured) {
+    return segmentMeasured(measured, idx(Segment::LHindfoot)) &&
+           segmentMeasured(measured, idx(Segment::RHindfoot));
+}
+
 void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     const Vec3d& trueRoot = truth.positionM[0];
     if (!lastTrueRootM_) {
@@ -60,27 +79,45 @@ std::optional<PoseScore> PoseScorer::score() const {
     s.meanAngleDeg = 0;
     s.meanPositionM = 0;
     s.meanHeightErrorM /= s.frames;
+    s.measuredJoints = 0;
+    int positions = 0;
     for (int i = 0; i < kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);
         s.angleDeg[u] /= s.frames;
         s.positionM[u] /= s.frames;
-        s.meanAngleDeg += s.angleDeg[u] / kSegmentCount;
+        if (!segmentMeasured(s.measured, i)) {
+            continue;
+        }
+        s.meanAngleDeg += s.angleDeg[u];
+        ++s.measuredJoints;
         if (i > 0) {
-            s.meanPositionM += s.positionM[u] / (kSegmentCount - 1);
+            s.meanPositionM += s.positionM[u];
+            ++positions;
         }
     }
+    s.meanAngleDeg /= std::max(1, s.measuredJoints);
+    s.meanPositionM /= std::max(1, positions);
     s.independentMeanAngleDeg = 0;
     s.independentMeanPositionM = 0;
+    s.measuredIndependentJoints = 0;
+    positions = 0;
     for (std::size_t j = 0; j < independentJoints().size(); ++j) {
         s.independentAngleDeg[j] /= s.frames;
         // A joint's centre is a segment origin: its error is that segment's row.
         s.independentPositionM[j] =
             s.positionM[static_cast<std::size_t>(independentJoints()[j].centre)];
-        s.independentMeanAngleDeg += s.independentAngleDeg[j] / kIndependentJointCount;
+        if (!independentJointMeasured(s.measured, j)) {
+            continue;
+        }
+        s.independentMeanAngleDeg += s.independentAngleDeg[j];
+        ++s.measuredIndependentJoints;
         if (independentJoints()[j].proximal >= 0) {
-            s.independentMeanPositionM += s.independentPositionM[j] / (kIndependentJointCount - 1);
+            s.independentMeanPositionM += s.independentPositionM[j];
+            ++positions;
         }
     }
+    s.independentMeanAngleDeg /= std::max(1, s.measuredIndependentJoints);
+    s.independentMeanPositionM /= std::max(1, positions);
     return s;
 }
 
@@ -111,30 +148,46 @@ Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
     return d;
 }
 
+namespace {
+
+// A row whose segment the suit does not measure: its error is the held pose's against the truth.
+constexpr const char* kHeld = " (not measured)";
+
+// The mean's label says over how many joints it is when the suit does not measure them all.
+std::string measuredNote(int joints, int of) {
+    return joints == of ? std::string() : fmt::format(" of the {} measured", joints);
+}
+
+}  // namespace
+
 std::string formatScoreTable(const PoseScore& s) {
     std::string out =
         "| joint | segment | angle error (deg) | position error (cm) |\n|---|---|---|---|\n";
     for (int i = 0; i < kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);
-        out += fmt::format("| {} | {} | {:.3f} | {:.3f} |\n", joints()[u].name,
+        out += fmt::format("| {}{} | {} | {:.3f} | {:.3f} |\n", joints()[u].name,
+                           segmentMeasured(s.measured, i) ? "" : kHeld,
                            board::segmentName(static_cast<Segment>(i)), s.angleDeg[u],
                            s.positionM[u] * 100);
     }
-    out +=
-        fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.meanAngleDeg, s.meanPositionM * 100);
+    out += fmt::format("| **mean**{} | | {:.3f} | {:.3f} |\n\n",
+                       measuredNote(s.measuredJoints, kSegmentCount), s.meanAngleDeg,
+                       s.meanPositionM * 100);
     out +=
         "the paper's 17 joints (lumbar and cervical as whole rotations, no toes):\n\n"
         "| joint | from - to | angle error (deg) | position error (cm) |\n|---|---|---|---|\n";
     for (std::size_t j = 0; j < independentJoints().size(); ++j) {
         const IndependentJoint& ij = independentJoints()[j];
         out += fmt::format(
-            "| {} | {} - {} | {:.3f} | {:.3f} |\n", ij.name,
+            "| {}{} | {} - {} | {:.3f} | {:.3f} |\n", ij.name,
+            independentJointMeasured(s.measured, j) ? "" : kHeld,
             ij.proximal < 0 ? "world" : board::segmentName(static_cast<Segment>(ij.proximal)),
             board::segmentName(static_cast<Segment>(ij.distal)), s.independentAngleDeg[j],
             s.independentPositionM[j] * 100);
     }
-    out += fmt::format("| **mean** | | {:.3f} | {:.3f} |\n\n", s.independentMeanAngleDeg,
-                       s.independentMeanPositionM * 100);
+    out += fmt::format("| **mean**{} | | {:.3f} | {:.3f} |\n\n",
+                       measuredNote(s.measuredIndependentJoints, kIndependentJointCount),
+                       s.independentMeanAngleDeg, s.independentMeanPositionM * 100);
     // A path of a few millimetres (jumping on the spot) makes no meaningful percentage.
     const std::string percent =
         s.walkedM >= 0.05 ? fmt::format(" ({:.2f} %)", 100 * s.finalDriftM / s.walkedM) : "";
@@ -143,6 +196,11 @@ std::string formatScoreTable(const PoseScore& s) {
         "{} stance changes; height error mean {:.3f} m, max {:.3f} m\n",
         s.walkedM, s.finalDriftM, percent, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM,
         s.maxHeightErrorM);
+    if (!rootTranslationMeasured(s.measured)) {
+        out +=
+            "root translation: not measured (the suit has no sensor on both feet: the root stays "
+            "where the held legs put it)\n";
+    }
     return out;
 }
 

@@ -26,20 +26,29 @@ struct BodyTruth {
     }
 };
 
+// Bit i for segment i (as body::SegmentMask).
+inline constexpr std::uint32_t kAllSegments = (std::uint32_t{1} << kSegmentCount) - 1;
+
 struct PoseScore {
     int frames = 0;
+    // The segments the suit measures (PoseSolver::coveredSegments): the means are over their
+    // joints only, and the tables mark the rest "not measured". A joint of the paper's 17 counts
+    // when both its segments are measured. The root's translation counts when both feet are.
+    std::uint32_t measured = kAllSegments;
     // Per joint (segment index): mean angle error of the joint rotation (the pelvis: of its
     // world orientation), deg; mean position error of the joint centre relative to the root, m.
     std::array<double, kSegmentCount> angleDeg{};
     std::array<double, kSegmentCount> positionM{};
-    double meanAngleDeg = 0;   // over the 21 joints
-    double meanPositionM = 0;  // over the 20 joints below the root
+    double meanAngleDeg = 0;   // over the 21 joints (the measured ones)
+    double meanPositionM = 0;  // over the 20 joints below the root (the measured ones)
+    int measuredJoints = kSegmentCount;
+    int measuredIndependentJoints = kIndependentJointCount;
     // The same for the paper's 17 independent joints (independentJoints(): the lumbar and
     // cervical joints as the whole pelvis -> t12 and t12 -> skull rotations, no toes).
     std::array<double, kIndependentJointCount> independentAngleDeg{};
     std::array<double, kIndependentJointCount> independentPositionM{};
-    double independentMeanAngleDeg = 0;   // over the 17
-    double independentMeanPositionM = 0;  // over the 16 below the root
+    double independentMeanAngleDeg = 0;   // over the 17 (the measured ones)
+    double independentMeanPositionM = 0;  // over the 16 below the root (the measured ones)
     double walkedM = 0;                   // horizontal path length of the true root
     double finalDriftM = 0;  // horizontal distance between solved and true root at the end
     double maxDriftM = 0;
@@ -51,6 +60,11 @@ struct PoseScore {
     int stanceChanges = 0;  // filled in by the caller (the solver's root tracker)
 };
 
+// Whether the paper's independent joint j rests on measured segments only.
+bool independentJointMeasured(std::uint32_t measured, std::size_t j);
+// Whether the root's translation is measured: it rests on the foot contacts, so both feet.
+bool rootTranslationMeasured(std::uint32_t measured);
+
 class PoseScorer {
 public:
     // How the solved root is put on the true one. Absolute: as solved (the solver's root was
@@ -60,6 +74,9 @@ public:
     enum class RootOrigin : std::uint8_t { Absolute, AtFirstFrame };
 
     explicit PoseScorer(RootOrigin origin = RootOrigin::Absolute) : origin_(origin) {}
+
+    // The segments the suit measures (default: all); see PoseScore::measured.
+    void setMeasured(std::uint32_t segments) { sum_.measured = segments & kAllSegments; }
 
     void add(const Pose& solved, const BodyTruth& truth);
     // The means over the frames added so far; none before the first frame: a mean over nothing

@@ -53,6 +53,34 @@ PoseSolver::PoseSolver(SegmentMask sensors, const PoseSolverOptions& options)
             }
         }
     }
+    // Coverage: a segment without a sensor is measured when it is the one link missing between
+    // two sensors (its parent's and a child's), or an end segment on a sensor's segment.
+    std::array<bool, kSegmentCount> sensorChild{};
+    std::array<bool, kSegmentCount> hasChild{};
+    for (int i = 1; i < kSegmentCount; ++i) {
+        const auto p = static_cast<std::size_t>(parentOf(i));
+        hasChild[p] = true;
+        sensorChild[p] = sensorChild[p] || has(sensors, i);
+    }
+    for (int i = 0; i < kSegmentCount; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        bool covered = false;
+        if (i == 0) {
+            covered = has(sensors, 0) || rootSource_ >= 0;
+        } else if (rules_[u] != SegmentRule::FollowParent) {
+            covered = true;
+        } else {
+            covered = has(sensors, parentOf(i)) && (sensorChild[u] || !hasChild[u]);
+        }
+        if (covered) {
+            covered_ |= SegmentMask{1} << i;
+        } else if (i > 0) {
+            // Held in the neutral standing pose (the N-pose: arms hanging), not the T-pose.
+            held_[u] = referenceOrientation(ReferencePoseKind::N, static_cast<Segment>(parentOf(i)))
+                           .conjugate() *
+                       referenceOrientation(ReferencePoseKind::N, static_cast<Segment>(i));
+        }
+    }
 }
 
 void PoseSolver::setCalibration(const BodyCalibration& cal) {
@@ -84,7 +112,7 @@ void PoseSolver::solve(const SensorFrame& frame, Pose& pose, JointLimitReport* r
             case SegmentRule::Sensor:
                 break;
             case SegmentRule::FollowParent:
-                pose.qWorld[u] = pose.qWorld[p];
+                pose.qWorld[u] = pose.qWorld[p] * held_[u];
                 break;
             case SegmentRule::SpineShare: {
                 const Share& sh = shares_[u];
@@ -148,7 +176,7 @@ SegmentMask PoseSolver::validSegments(SegmentMask present) const {
                 break;
         }
     }
-    return valid;
+    return valid & covered_;
 }
 
 double applyJointLimits(const JointLimits& limits, Quatd& qLocal, bool clamp) {

@@ -13,7 +13,8 @@ namespace caphub::body {
 enum class SegmentRule : std::uint8_t {
     Sensor,       // its own sensor
     SpineShare,   // a share of the rotation between the spine sensors above and below it
-    FollowParent  // its joint stays in the reference pose (toes, or a limb with no sensor)
+    FollowParent  // its joint stays in the reference pose (toes, a clavicle), or a limb or the
+                  // trunk with no sensor on it in the neutral standing pose (coveredSegments)
 };
 
 struct JointLimitReport {
@@ -40,9 +41,18 @@ public:
     void solve(const SensorFrame& frame, Pose& pose, JointLimitReport* report = nullptr) const;
     // The segments whose solved orientation rests only on sensors in `present` (those with an
     // orientation in the frame): a sensor's own segment when it is present, a spine share when
-    // both its ends are, a follower when what it follows is. A segment of a missing sensor is
-    // still solved (from the identity orientation), so this is what tells it apart.
+    // both its ends are, a follower when what it follows is - and only segments the suit covers
+    // at all (coveredSegments). A segment of a missing sensor is still solved (from the identity
+    // orientation), so this is what tells it apart.
     SegmentMask validSegments(SegmentMask present) const;
+    // The segments the suit's sensors give an orientation for when all are present: those with
+    // a sensor, spine segments between two sensors, a segment without a sensor that is the one
+    // link missing between its parent's sensor and a child's (a clavicle between the chest and
+    // an upper arm), and an end segment (toes, a hand) whose parent has a sensor. The rest - a limb
+    // or the trunk with no sensor on it (the legs of the 10-sensor upper body, the trunk and arms
+    // of the 7-sensor lower body) - is held in the reference pose under its parent and never
+    // measured (docs/sparse.md).
+    SegmentMask coveredSegments() const { return covered_; }
 
 private:
     struct Share {
@@ -58,6 +68,15 @@ private:
     std::array<SegmentRule, kSegmentCount> rules_{};
     std::array<Share, kSegmentCount> shares_{};
     int rootSource_ = -1;  // when the pelvis has no sensor: the spine segment it follows
+    SegmentMask covered_ = 0;
+    // A follower's joint rotation: the identity, or for a segment not covered the neutral
+    // standing pose's (the arms hanging).
+    std::array<Quatd, kSegmentCount> held_ = filledIdentity();
+    static std::array<Quatd, kSegmentCount> filledIdentity() {
+        std::array<Quatd, kSegmentCount> a;
+        a.fill(Quatd::Identity());
+        return a;
+    }
 };
 
 // Joint limit check of one joint rotation: the excess in degrees (0 inside). With clamp, q is

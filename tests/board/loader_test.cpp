@@ -523,5 +523,75 @@ TEST(Documentation, UserGuideExampleIsValid) {
     ASSERT_EQ(r.board->subject.segmentLengthsM.size(), 1u);
 }
 
+TEST(ShippedBoards, SparseSuitsNameTheirLayout) {
+    const struct {
+        const char* file;
+        BodyLayout layout;
+        std::size_t sensors;
+    } boards[] = {
+        {"/board/sim-suit.toml", BodyLayout::Full, 17},
+        {"/board/sim-upper10.toml", BodyLayout::Upper10, 10},
+        {"/board/sim-suit-lower7.toml", BodyLayout::Lower7, 7},
+    };
+    for (const auto& b : boards) {
+        const auto r = loadBoardFile(std::string(CAPHUB_SOURCE_DIR) + b.file);
+        ASSERT_TRUE(r.ok()) << r.errors[0].str();
+        EXPECT_TRUE(r.warnings.empty()) << r.warnings[0].str();
+        ASSERT_TRUE(r.board->body.layout) << b.file;
+        EXPECT_EQ(*r.board->body.layout, b.layout) << b.file;
+        EXPECT_EQ(r.board->sensors.size(), b.sensors) << b.file;
+        std::vector<Segment> segments;
+        for (const auto& s : r.board->sensors) {
+            segments.push_back(s.segment);
+        }
+        EXPECT_EQ(matchLayout(segments), b.layout) << b.file;
+    }
+}
+
+TEST(BoardLoader, ASparseLayoutMustCoverThePelvis) {
+    const std::string text = kHeader + "\n[body]\nlayout = \"sparse\"\n" +
+                             sensor("a", "t12", 0, 0x68) + sensor("b", "l_thigh", 0, 0x69);
+    expectOneError(load(text), "body.layout", lineOf(text, "layout ="),
+                   "layout 'sparse' needs a sensor on the pelvis");
+    // With it, any subset is a sparse suit.
+    const auto ok =
+        load(kHeader + "\n[body]\nlayout = \"sparse\"\n" + sensor("p", "pelvis", 1, 0x68) +
+             sensor("a", "t12", 0, 0x68) + sensor("b", "l_thigh", 0, 0x69));
+    ASSERT_TRUE(ok.ok()) << ok.errors[0].str();
+    EXPECT_EQ(ok.board->body.layout, BodyLayout::Sparse);
+}
+
+TEST(BoardLoader, ANamedLayoutMustHaveExactlyItsSensors) {
+    // lower7 with a chest sensor too, and without the right foot.
+    const std::string text = kHeader + "\n[body]\nlayout = \"lower7\"\n" +
+                             sensor("p", "pelvis", 0, 0x68) + sensor("c", "t12", 0, 0x69) +
+                             sensor("lt", "l_thigh", 1, 0x68) + sensor("ls", "l_calf", 1, 0x69) +
+                             sensor("lf", "l_hindfoot", 2, 0x68) +
+                             sensor("rt", "r_thigh", 2, 0x69) + sensor("rs", "r_calf", 3, 0x68);
+    const auto r = load(text);
+    expectOneError(r, "body.layout", lineOf(text, "layout ="), "no sensor on r_hindfoot");
+    EXPECT_THAT(r.errors[0].message, HasSubstr("not part of it: t12"));
+    EXPECT_THAT(r.errors[0].message, HasSubstr("layout = \"sparse\""));
+}
+
+TEST(BoardLoader, AnUnknownLayoutIsNamed) {
+    const std::string text =
+        kHeader + "\n[body]\nlayout = \"upper9\"\n" + sensor("p", "pelvis", 0, 0x68);
+    expectOneError(load(text), "body.layout", lineOf(text, "layout ="),
+                   "unknown layout 'upper9' (expected \"full\", \"upper10\", \"lower7\" or "
+                   "\"sparse\")");
+}
+
+TEST(BoardLoader, ABoardWithoutALayoutOrAPelvisSensorLoadsWithAWarning) {
+    // A bench board: a sensor or two anywhere. It loads, and says what a body would lack.
+    const auto r = load(kHeader + sensor("a", "l_hand", 0, 0x68));
+    ASSERT_TRUE(r.ok()) << r.errors[0].str();
+    EXPECT_FALSE(r.board->body.layout);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_EQ(r.warnings[0].key, "body");
+    EXPECT_THAT(r.warnings[0].message, HasSubstr("no sensor on the pelvis"));
+    EXPECT_TRUE(load(kHeader + sensor("a", "pelvis", 0, 0x68)).warnings.empty());
+}
+
 }  // namespace
 }  // namespace caphub::board

@@ -90,5 +90,44 @@ TEST(PoseScore, AnElbowErrorCountsOnceInEachTable) {
     EXPECT_NEAR(s.independentPositionM[0], 0, 1e-12);  // the root
 }
 
+TEST(PoseScore, ASparseSuitIsScoredOverTheSegmentsItMeasures) {
+    // The truth bends the left knee 30 deg and the left elbow 40 deg; the solver gets the elbow
+    // 4 deg off and holds the leg straight, as a 10-sensor upper body does. Over the measured
+    // segments only, the knee (held, not measured) does not count; every row is still there.
+    auto trueLocal = reference();
+    trueLocal[idx(S::LCalf)] = rotX(30);
+    trueLocal[idx(S::LForearm)] = rotX(40);
+    auto solvedLocal = trueLocal;
+    solvedLocal[idx(S::LCalf)] = Quatd::Identity();
+    solvedLocal[idx(S::LForearm)] = rotX(36);
+    std::uint32_t upper = kAllSegments;
+    for (S seg : {S::LThigh, S::LCalf, S::LHindfoot, S::LMiddistal, S::RThigh, S::RCalf,
+                  S::RHindfoot, S::RMiddistal}) {
+        upper &= ~(std::uint32_t{1} << idx(seg));
+    }
+    PoseScorer sparse;
+    sparse.setMeasured(upper);
+    PoseScorer all;
+    sparse.add(poseFrom(solvedLocal), truthOf(poseFrom(trueLocal)));
+    all.add(poseFrom(solvedLocal), truthOf(poseFrom(trueLocal)));
+    const PoseScore s = *sparse.score();
+    const PoseScore a = *all.score();
+
+    EXPECT_EQ(s.measuredJoints, 13);
+    EXPECT_NEAR(s.meanAngleDeg, 4.0 / 13, 1e-6);
+    EXPECT_NEAR(a.meanAngleDeg, 34.0 / kSegmentCount, 1e-6);
+    EXPECT_NEAR(s.angleDeg[idx(S::LCalf)], 30, 1e-6);  // reported, not averaged
+    // The paper's 17: the hips, knees and ankles (6) are out, 11 are left.
+    EXPECT_EQ(s.measuredIndependentJoints, 11);
+    EXPECT_NEAR(s.independentMeanAngleDeg, 4.0 / 11, 1e-6);
+    EXPECT_FALSE(rootTranslationMeasured(s.measured));
+    EXPECT_TRUE(rootTranslationMeasured(a.measured));
+    const std::string table = formatScoreTable(s);
+    EXPECT_NE(table.find("| l_knee (not measured) | l_calf |"), std::string::npos) << table;
+    EXPECT_NE(table.find("| **mean** of the 13 measured |"), std::string::npos) << table;
+    EXPECT_NE(table.find("root translation: not measured"), std::string::npos) << table;
+    EXPECT_EQ(formatScoreTable(a).find("not measured"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace caphub::body

@@ -101,6 +101,81 @@ TEST(PoseSolver, UpperBodyWithTenSensorsHoldsTheLegsInTheReferencePose) {
     EXPECT_EQ(s.solver.rule(S::C7), SegmentRule::SpineShare);
 }
 
+// The 7-sensor lower body (pelvis, thighs, shanks, feet).
+constexpr SegmentMask kLower7 = bit(S::Pelvis) | bit(S::LThigh) | bit(S::LCalf) |
+                                bit(S::LHindfoot) | bit(S::RThigh) | bit(S::RCalf) |
+                                bit(S::RHindfoot);
+
+SegmentMask maskOf(std::initializer_list<S> segments) {
+    SegmentMask m = 0;
+    for (S s : segments) {
+        m |= bit(s);
+    }
+    return m;
+}
+
+TEST(PoseSolver, LowerBodyWithSevenSensorsHoldsTheUpperBodyOnThePelvis) {
+    std::mt19937 rng(47);
+    Rig s = calibrated(kLower7, rng);
+    const Pose truth = testing::randomPose(rng, 1.0);
+    Pose out;
+    s.solver.solve(testing::sensorsFor(truth, s.mounting, kLower7, 0.7), out);
+    // The trunk, head and arms follow the pelvis in the neutral standing pose: the trunk and
+    // head straight over it (each joint the identity), the arms hanging (the N-pose's arms).
+    for (S seg : {S::L5, S::T12, S::C7, S::Skull, S::LClavicle, S::RClavicle}) {
+        EXPECT_EQ(s.solver.rule(seg), SegmentRule::FollowParent);
+        EXPECT_LT(angleBetween(out.qLocal[idx(seg)], Quatd::Identity()), 1e-12);
+    }
+    for (S seg : {S::LUpperarm, S::LForearm, S::RHand}) {
+        EXPECT_EQ(s.solver.rule(seg), SegmentRule::FollowParent);
+        const Quatd hanging =
+            truth.qWorld[idx(S::Pelvis)] * referenceOrientation(ReferencePoseKind::N, seg);
+        EXPECT_LT(angleBetween(out.qWorld[idx(seg)], hanging), 1e-9);
+    }
+    // Hanging: the upper arm's long axis (+-X in the T-pose) points down the pelvis' -Y.
+    const Vec3d down = truth.qWorld[idx(S::Pelvis)] * Vec3d(0, -1, 0);
+    EXPECT_NEAR((out.qWorld[idx(S::LUpperarm)] * Vec3d::UnitX()).dot(down), 1.0, 1e-9);
+    EXPECT_LT(angleBetween(out.qWorld[idx(S::T12)], truth.qWorld[idx(S::Pelvis)]), 1e-9);
+    for (S seg : {S::Pelvis, S::LThigh, S::LCalf, S::RHindfoot}) {
+        EXPECT_LT(angleBetween(out.qWorld[idx(seg)], truth.qWorld[idx(seg)]), 1e-9);
+    }
+}
+
+TEST(PoseSolver, SegmentsOfALimbOrTrunkWithoutSensorsAreNotMeasured) {
+    // The full suit measures everything: the lumbar and cervical segments share the spine's
+    // rotation between sensors, the toes follow their foot.
+    EXPECT_EQ(PoseSolver(testing::kFullSuit).coveredSegments(), testing::kAll);
+    // The upper body: the legs are held, not measured; the clavicles (under an upper-arm
+    // sensor) and the neck (between the chest and the head) are.
+    const SegmentMask legs = maskOf({S::LThigh, S::LCalf, S::LHindfoot, S::LMiddistal, S::RThigh,
+                                     S::RCalf, S::RHindfoot, S::RMiddistal});
+    EXPECT_EQ(PoseSolver(testing::kUpper10).coveredSegments(), testing::kAll & ~legs);
+    // The lower body: the trunk above the pelvis, the head and the arms are held.
+    const SegmentMask upper =
+        maskOf({S::L5, S::T12, S::C7, S::Skull, S::LClavicle, S::LUpperarm, S::LForearm, S::LHand,
+                S::RClavicle, S::RUpperarm, S::RForearm, S::RHand});
+    EXPECT_EQ(PoseSolver(kLower7).coveredSegments(), testing::kAll & ~upper);
+    // A hand without a sensor follows a forearm that has one (an end segment, as the toes); an
+    // arm whose only sensor is on the hand is not measured above it (three links missing).
+    const SegmentMask noHands = testing::kFullSuit & ~maskOf({S::LHand, S::RHand});
+    EXPECT_EQ(PoseSolver(noHands).coveredSegments(), testing::kAll);
+    const SegmentMask handOnly = kLower7 | bit(S::T12) | bit(S::LHand);
+    const SegmentMask covered = PoseSolver(handOnly).coveredSegments();
+    EXPECT_TRUE(has(covered, idx(S::LHand)));
+    EXPECT_FALSE(has(covered, idx(S::LForearm)));
+    EXPECT_FALSE(has(covered, idx(S::LUpperarm)));
+    EXPECT_FALSE(has(covered, idx(S::LClavicle)));
+    EXPECT_TRUE(has(covered, idx(S::L5)));  // between the pelvis and the chest
+    // What is valid in a pose is never more than what is covered, even with every sensor there.
+    EXPECT_EQ(PoseSolver(kLower7).validSegments(kLower7), PoseSolver(kLower7).coveredSegments());
+    EXPECT_EQ(PoseSolver(testing::kUpper10).validSegments(testing::kUpper10),
+              testing::kAll & ~legs);
+    // A sensor out takes its followers with it, as before.
+    const SegmentMask noLeftThigh = PoseSolver(kLower7).validSegments(kLower7 & ~bit(S::LThigh));
+    EXPECT_FALSE(has(noLeftThigh, idx(S::LThigh)));
+    EXPECT_TRUE(has(noLeftThigh, idx(S::LCalf)));
+}
+
 TEST(PoseSolver, LimitViolationsAreReportedButNotAppliedByDefault) {
     std::mt19937 rng(47);
     Rig s = calibrated(testing::kAll, rng);

@@ -193,6 +193,54 @@ TEST(Cli, RunCapturesTheVirtualSuitAndInfoDescribesTheRecording) {
     EXPECT_THAT(info.output, HasSubstr("damage: none"));
 }
 
+// The 7-sensor lower body: `run` captures it, the upper body follows the pelvis, and the CSV
+// export flags the trunk, head and arms as not measured in every row; `boards validate` says
+// what the layout leaves out, and refuses a sparse layout without the pelvis.
+TEST(Cli, ALowerBodySuitRunsAndItsExportMarksTheUpperBodyNotMeasured) {
+    const std::string board = std::string(CAPHUB_SOURCE_DIR) + "/board/sim-suit-lower7.toml";
+    const CliRun v = caphub("boards validate " + board);
+    ASSERT_EQ(v.exitCode, 0) << v.output;
+    EXPECT_THAT(v.output, HasSubstr("body: layout lower7; not measured (held in the neutral "
+                                    "standing pose): l5 t12 c7 skull l_clavicle"));
+    const std::string rec =
+        ::testing::TempDir() + "caphub-cli-lower7-" + std::to_string(getpid()) + ".cap";
+    std::filesystem::remove(rec);
+    const CliRun r =
+        caphub("run --board " + board + " --duration 2 --speed 4 --no-preview --record " + rec);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("7 sensors on 2 buses"));
+    const std::string csv = rec + ".csv";
+    const CliRun ex = caphub("export " + rec + " --format csv -o " + csv);
+    ASSERT_EQ(ex.exitCode, 0) << ex.output;
+    std::ifstream in(csv);
+    std::string line;
+    int rows = 0;
+    std::getline(in, line);  // the header
+    while (std::getline(in, line)) {
+        const std::string last = line.substr(line.rfind(',') + 1);
+        EXPECT_THAT(last, HasSubstr("t12")) << line;
+        EXPECT_THAT(last, HasSubstr("r_hand")) << line;
+        EXPECT_EQ(last.find("thigh"), std::string::npos) << line;
+        ++rows;
+    }
+    EXPECT_GT(rows, 30);
+
+    const std::string noPelvis =
+        ::testing::TempDir() + "caphub-cli-nopelvis-" + std::to_string(getpid()) + ".toml";
+    std::string text;
+    {
+        std::ifstream b(board);
+        std::stringstream ss;
+        ss << b.rdbuf();
+        text = ss.str();
+    }
+    text.replace(text.find("segment = \"pelvis\""), 18, "segment = \"t12\"");
+    std::ofstream(noPelvis) << text;
+    const CliRun bad = caphub("boards validate " + noPelvis);
+    EXPECT_EQ(bad.exitCode, 2) << bad.output;
+    EXPECT_THAT(bad.output, HasSubstr("body.layout: layout 'lower7' needs a sensor on the pelvis"));
+}
+
 TEST(Cli, RunRefusesABadBoardWithExitCode2) {
     const std::string path = std::string(CAPHUB_TEST_DATA_DIR) + "/boards/three-mistakes.toml";
     EXPECT_EQ(caphub("run --board " + path + " --duration 1").exitCode, 2);

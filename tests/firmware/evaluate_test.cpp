@@ -247,6 +247,51 @@ TEST(EvaluateThroughTheFilter, IdealSensorsComeCloseToTheIdealOrientationEvaluat
     EXPECT_NEAR(real->score.meanAngleDeg, ideal->meanAngleDeg, 0.75) << tables;
 }
 
+// The sparse suits (docs/sparse.md) on ideal chips: each is scored over the segments it
+// measures, and scores those about as the full suit does; the 7-sensor lower body walks the
+// root, the 10-sensor upper body cannot (no feet).
+TEST(EvaluateThroughTheFilter, SparseSuitsScoreTheSegmentsTheyMeasure) {
+    const board::Board full = simSuit();
+    const board::Board lower =
+        *board::loadBoardFile(kSource / "board" / "sim-suit-lower7.toml").board;
+    const board::Board upper = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
+    auto f = firmware::evaluateClip(full, idealOptions(10));
+    auto l = firmware::evaluateClip(lower, idealOptions(10));
+    auto u = firmware::evaluateClip(upper, idealOptions(10));
+    ASSERT_TRUE(f) << f.error().message;
+    ASSERT_TRUE(l) << l.error().message;
+    ASSERT_TRUE(u) << u.error().message;
+    const std::string tables = "full:\n" + body::formatScoreTable(f->score) + "\nlower7:\n" +
+                               body::formatScoreTable(l->score) + "\nupper10:\n" +
+                               body::formatScoreTable(u->score);
+    EXPECT_EQ(f->score.measuredJoints, body::kSegmentCount);
+    // lower7: the pelvis, both legs' thigh, shank, foot and toes.
+    EXPECT_EQ(l->score.measuredJoints, 9) << tables;
+    EXPECT_EQ(l->score.measuredIndependentJoints, 7) << tables;
+    // upper10: the pelvis, the spine (4), both arms' clavicle, upper arm, forearm and hand.
+    EXPECT_EQ(u->score.measuredJoints, 13) << tables;
+    EXPECT_EQ(u->score.measuredIndependentJoints, 11) << tables;
+    // The legs of the lower body as the full suit has them, within a degree; the arms of the
+    // upper body likewise (their own sensors, the same calibration).
+    for (board::Segment s :
+         {board::Segment::LThigh, board::Segment::LCalf, board::Segment::RHindfoot}) {
+        const auto i = static_cast<std::size_t>(body::idx(s));
+        EXPECT_NEAR(l->score.angleDeg[i], f->score.angleDeg[i], 1.0) << tables;
+    }
+    for (board::Segment s : {board::Segment::LUpperarm, board::Segment::RForearm}) {
+        const auto i = static_cast<std::size_t>(body::idx(s));
+        EXPECT_NEAR(u->score.angleDeg[i], f->score.angleDeg[i], 1.5) << tables;
+    }
+    // A held segment is far off: the walking knee is not straight.
+    EXPECT_GT(u->score.angleDeg[static_cast<std::size_t>(body::idx(board::Segment::LCalf))], 10.0)
+        << tables;
+    // The root: the feet walk it (within 10 % of the 3.9 m walked), the held legs do not.
+    EXPECT_TRUE(body::rootTranslationMeasured(l->score.measured));
+    EXPECT_FALSE(body::rootTranslationMeasured(u->score.measured));
+    EXPECT_LT(l->score.finalDriftM, 0.1 * l->score.walkedM) << tables;
+    EXPECT_GT(u->score.finalDriftM, 0.8 * u->score.walkedM) << tables;
+}
+
 TEST(EvaluateThroughTheFilter, StrappedSensorsWithoutACalibrationScoreWorseThanAfterTheTPose) {
     const board::Board b = simSuit();
     auto calibrated = firmware::evaluateClip(b, idealOptions(10));

@@ -251,7 +251,8 @@ TEST(InfoCli, ListsTheSpansInWhichASegmentWasNotMeasured) {
 
     // A recording without gaps says so.
     const CliRun walkInfo = caphub("info " + walk());
-    EXPECT_THAT(walkInfo.output, HasSubstr("segments not measured (their sensor out; held in the "
+    EXPECT_THAT(walkInfo.output, HasSubstr("segments not measured (no sensor on them, or their "
+                                           "sensor out; held in the "
                                            "poses): none"));
 }
 

@@ -56,21 +56,23 @@ TEST(BroadCsv, NamesFileLineAndFieldOfAMalformedRow) {
     auto t = readBroadCsv(p);
     std::filesystem::remove(p);
     ASSERT_FALSE(t);
-    EXPECT_NE(t.error().message.find("caphub_broad_bad.csv:3:"), std::string::npos)
+    // Line 3, column 10: where 'abc' starts.
+    EXPECT_NE(t.error().message.find("caphub_broad_bad.csv:3:10:"), std::string::npos)
         << t.error().message;
     EXPECT_NE(t.error().message.find("gyr_y"), std::string::npos) << t.error().message;
 }
 
 TEST(BroadCsv, RefusesShortRowsNanImuValuesAndTimeGoingBack) {
     const std::string base = std::string(kHeader) + "0.00,0,0,0,0,0,9.8,0,20,-40,1,0,0,0,0\n";
+    // Each with the line and column of the field at fault (a missing one: past the row's end).
     const struct {
         const char* row;
         const char* expect;
     } cases[] = {
-        {"0.01,0,0,0,0,0,9.8,0,20\n", "expected 15 fields, got 9"},
-        {"0.01,nan,0,0,0,0,9.8,0,20,-40,1,0,0,0,0\n", "gyr_x"},
-        {"0.00,0,0,0,0,0,9.8,0,20,-40,1,0,0,0,0\n", "expected t to increase"},
-        {"0.01,0,0,0,0,0,9.8,0,20,-40,1,0,0,0,2\n", "expected 0 or 1"},
+        {"0.01,0,0,0,0,0,9.8,0,20\n", ":3:24: expected 15 fields, got 9"},
+        {"0.01,nan,0,0,0,0,9.8,0,20,-40,1,0,0,0,0\n", ":3:6: field 'gyr_x'"},
+        {"0.00,0,0,0,0,0,9.8,0,20,-40,1,0,0,0,0\n", ":3:1: expected t to increase"},
+        {"0.01,0,0,0,0,0,9.8,0,20,-40,1,0,0,0,2\n", ":3:37: field 'movement': expected 0 or 1"},
     };
     for (const auto& c : cases) {
         const auto p = writeText("caphub_broad_case.csv", base + c.row);
@@ -88,7 +90,7 @@ TEST(BroadCsv, RefusesAWrongHeader) {
     auto t = readBroadCsv(p);
     std::filesystem::remove(p);
     ASSERT_FALSE(t);
-    EXPECT_NE(t.error().message.find(":1: header column 10: expected 'mag_z', got 'magz'"),
+    EXPECT_NE(t.error().message.find(":1:51: header column 10: expected 'mag_z', got 'magz'"),
               std::string::npos)
         << t.error().message;
 }
