@@ -99,6 +99,30 @@ JointMap cmu3dsMax() {
                    });
 }
 
+// The CMU clips in the Daz-friendly release (root "hip", abdomen, chest, lCollar, lShldr,
+// lThigh, lShin, ...): centimetres; frame 0 is the rest pose (a T-pose with the hands turned a
+// little forward) and frames 1-5 blend from it into the captured motion at up to 3000 deg/s (the
+// arms), so the motion starts at frame 6; lButtock/rButtock (hip to thigh) carry no motion of their
+// own and stay unmapped; no toes. The reference is the synthetic T-pose, so that the forearm and
+// foot bones lie along the T-pose's directions like the other presets'.
+JointMap cmuDaz() {
+    JointMap m = makeMap("cmu-daz", ReferencePose{ReferencePose::Kind::TPose, 0}, 6,
+                         {
+                             {Segment::Pelvis, {"hip"}},       {Segment::L5, {"abdomen"}},
+                             {Segment::T12, {"chest"}},        {Segment::C7, {"neck"}},
+                             {Segment::Skull, {"head"}},       {Segment::LClavicle, {"lCollar"}},
+                             {Segment::LUpperarm, {"lShldr"}}, {Segment::LForearm, {"lForeArm"}},
+                             {Segment::LHand, {"lHand"}},      {Segment::RClavicle, {"rCollar"}},
+                             {Segment::RUpperarm, {"rShldr"}}, {Segment::RForearm, {"rForeArm"}},
+                             {Segment::RHand, {"rHand"}},      {Segment::LThigh, {"lThigh"}},
+                             {Segment::LCalf, {"lShin"}},      {Segment::LHindfoot, {"lFoot"}},
+                             {Segment::RThigh, {"rThigh"}},    {Segment::RCalf, {"rShin"}},
+                             {Segment::RHindfoot, {"rFoot"}},
+                         });
+    m.unitM = 0.01;
+    return m;
+}
+
 std::string segmentNames() {
     std::string out;
     for (const auto& s : board::kSegments) {
@@ -263,7 +287,7 @@ private:
 }  // namespace
 
 std::span<const JointMap> builtInJointMaps() {
-    static const std::array<JointMap, 2> kMaps = {cmuMotionBuilder(), cmu3dsMax()};
+    static const std::array<JointMap, 3> kMaps = {cmuMotionBuilder(), cmu3dsMax(), cmuDaz()};
     return kMaps;
 }
 

@@ -39,8 +39,8 @@ struct JointMap {
     std::array<std::vector<std::string>, board::kSegmentCount> joints;
 };
 
-// The built-in maps: "cmu-motionbuilder" (Hips, LeftUpLeg, LeftLeg, ...) and "cmu-3dsmax"
-// (Hips, LeftHip, LeftKnee, lowerback, Chest, ...).
+// The built-in maps: "cmu-motionbuilder" (Hips, LeftUpLeg, LeftLeg, ...), "cmu-3dsmax"
+// (Hips, LeftHip, LeftKnee, lowerback, Chest, ...), "cmu-daz" (hip, abdomen, lThigh, lShin, ...).
 std::span<const JointMap> builtInJointMaps();
 const JointMap* findBuiltInJointMap(std::string_view name);
 

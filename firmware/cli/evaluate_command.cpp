@@ -3,6 +3,7 @@
 // BodyStage with its T-pose calibration): the per-joint error table of every clip. A
 // measurement, not a test: it exits 0 whatever the errors are. A clip that gives not a single
 // scored pose is bad input (exit 2), never a table of zeros.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -36,8 +37,94 @@ struct EvaluateCliOptions {
     bool noBodyAiding = false;
     bool noFootInertial = false;
     bool reprocessSmooth = false;
+    bool brief = false;
     std::vector<std::uint64_t> seeds;
 };
+
+// A clip whose true root never gets further than this from where it started is "in place": its
+// drift is read in cm, not as a share of a path that is mostly sway.
+constexpr double kInPlaceM = 0.5;
+
+// One row per clip (the means over its seeds; the height's and the drift's worst seed beside
+// them), then the summary: the 17 joints' angle and position error, the root's horizontal drift
+// (% of the true path; cm for in-place clips) and its height error (docs/skeleton.md, "Every
+// shared clip").
+std::string summaryTable(const std::vector<EvaluateResult>& results) {
+    std::vector<std::string> clips;
+    for (const auto& r : results) {
+        if (std::find(clips.begin(), clips.end(), r.clip) == clips.end()) {
+            clips.push_back(r.clip);
+        }
+    }
+    std::string out = fmt::format(
+        "\nevery clip, mean over its seeds (worst seed in brackets): the 17 joints' angle (deg) "
+        "and "
+        "position (cm, relative to the root), the true path (m), the root's horizontal drift at "
+        "the end (% of the path; cm for a clip in place, the root never {:g} m from its start), "
+        "its height error mean "
+        "and max (cm)\n"
+        "| clip | seeds | angle deg | position cm | path m | drift | height mean cm | height max "
+        "cm |\n|---|---|---|---|---|---|---|---|\n",
+        kInPlaceM);
+    double angle = 0;
+    double position = 0;
+    double heightMean = 0;
+    double heightMax = 0;
+    double movingPct = 0;
+    double inPlaceCm = 0;
+    int moving = 0;
+    int inPlace = 0;
+    for (const auto& clip : clips) {
+        double a = 0;
+        double p = 0;
+        double path = 0;
+        double drift = 0;
+        double driftWorst = 0;
+        double hm = 0;
+        double hmWorst = 0;
+        double hx = 0;
+        bool walks = false;
+        int n = 0;
+        for (const auto& r : results) {
+            if (r.clip != clip) {
+                continue;
+            }
+            const body::PoseScore& s = r.score;
+            a += s.independentMeanAngleDeg;
+            p += s.independentMeanPositionM * 100;
+            path += s.walkedM;
+            // The truth, and so whether it travels, is the same for every seed.
+            walks = s.excursionM >= kInPlaceM && s.walkedM > 0;
+            const double d = walks ? s.finalDriftM / s.walkedM * 100 : s.finalDriftM * 100;
+            drift += d;
+            driftWorst = std::max(driftWorst, d);
+            hm += s.meanHeightErrorM * 100;
+            hmWorst = std::max(hmWorst, s.meanHeightErrorM * 100);
+            hx = std::max(hx, s.maxHeightErrorM * 100);
+            ++n;
+        }
+        const double k = n;
+        out += fmt::format(
+            "| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} {} ({:.2f}) | {:.2f} ({:.2f}) "
+            "| {:.2f} |\n",
+            clip, n, a / k, p / k, path / k, drift / k, walks ? "%" : "cm", driftWorst, hm / k,
+            hmWorst, hx);
+        angle += a / k;
+        position += p / k;
+        heightMean += hm / k;
+        heightMax = std::max(heightMax, hx);
+        (walks ? movingPct : inPlaceCm) += drift / k;
+        ++(walks ? moving : inPlace);
+    }
+    const double c = static_cast<double>(clips.size());
+    out += fmt::format(
+        "summary over {} clips: 17 joints {:.2f} deg / {:.2f} cm; drift {:.2f} % over {} clips "
+        "that travel, {:.2f} cm over {} in place; height error {:.2f} cm mean, {:.2f} cm at "
+        "worst\n",
+        clips.size(), angle / c, position / c, moving > 0 ? movingPct / moving : 0.0, moving,
+        inPlace > 0 ? inPlaceCm / inPlace : 0.0, inPlace, heightMean / c, heightMax);
+    return out;
+}
 
 // With --reprocess-smooth: one row per clip and seed, live against reprocessed-smoothed, and
 // the means.
@@ -170,11 +257,23 @@ int evaluate(const EvaluateCliOptions& c) {
                 fmt::print(stderr, "caphub evaluate: {}\n", r.error().message);
                 return r.error().code == EINVAL ? kExitUsage : kExitRuntime;
             }
-            fmt::print("{}\n", formatEvaluation(*r, b, o));
+            if (c.brief) {
+                const body::PoseScore& s = r->score;
+                fmt::print(
+                    "{} seed {}: 17 joints {:.3f} deg / {:.3f} cm, path {:.3f} m, drift "
+                    "{:.3f} m, height error {:.3f} m mean / {:.3f} m max\n",
+                    r->clip, seed, s.independentMeanAngleDeg, s.independentMeanPositionM * 100,
+                    s.walkedM, s.finalDriftM, s.meanHeightErrorM, s.maxHeightErrorM);
+            } else {
+                fmt::print("{}\n", formatEvaluation(*r, b, o));
+            }
             std::fflush(stdout);
             results.push_back(std::move(*r));
             seedOf.push_back(seed);
         }
+    }
+    if (results.size() > 1 || c.brief) {
+        fmt::print("{}", summaryTable(results));
     }
     if (c.reprocessSmooth) {
         fmt::print("{}", smoothTable(results, seedOf));
@@ -228,6 +327,9 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
                   "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
                   "and score it: live against smoothed, a table at the end");
+    cmd->add_flag("--brief", o->brief,
+                  "One line per clip and seed instead of the per-joint tables; the summary table "
+                  "over every clip at the end as always with several runs");
     cmd->add_option("--seeds", o->seeds, "Several seeds (instead of --seed): each clip with each")
         ->delimiter(',');
     cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });

@@ -29,6 +29,7 @@ bool rootTranslationMeasured(std::uint32_t measured) {
 void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     const Vec3d& trueRoot = truth.positionM[0];
     if (!lastTrueRootM_) {
+        firstTrueRootM_ = trueRoot;
         heightOffsetM_ = trueRoot.y() - solved.positionM[0].y();
         if (origin_ == RootOrigin::AtFirstFrame) {
             rootOffsetM_ = trueRoot - solved.positionM[0];
@@ -39,6 +40,8 @@ void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
             std::hypot(trueRoot.x() - lastTrueRootM_->x(), trueRoot.z() - lastTrueRootM_->z());
     }
     lastTrueRootM_ = trueRoot;
+    sum_.excursionM = std::max(sum_.excursionM, std::hypot(trueRoot.x() - firstTrueRootM_.x(),
+                                                           trueRoot.z() - firstTrueRootM_.z()));
     for (int i = 0; i < kSegmentCount; ++i) {
         const auto u = static_cast<std::size_t>(i);
         const Quatd trueLocal =

@@ -50,6 +50,10 @@ struct PoseScore {
     double independentMeanAngleDeg = 0;   // over the 17 (the measured ones)
     double independentMeanPositionM = 0;  // over the 16 below the root (the measured ones)
     double walkedM = 0;                   // horizontal path length of the true root
+    // The true root's largest horizontal distance from where it was at the first frame: a clip
+    // "in place" (a jump, a squat, hammering) stays within a few decimetres however long its
+    // path of sway is.
+    double excursionM = 0;
     double finalDriftM = 0;  // horizontal distance between solved and true root at the end
     double maxDriftM = 0;
     // The root's height against the truth's, the offset at the first frame removed (the floor
@@ -87,6 +91,7 @@ private:
     RootOrigin origin_;
     PoseScore sum_;
     std::optional<Vec3d> lastTrueRootM_;
+    Vec3d firstTrueRootM_ = Vec3d::Zero();
     Vec3d rootOffsetM_ = Vec3d::Zero();  // true minus solved, horizontal, at the first frame
     double heightOffsetM_ = 0;           // true minus solved root height at the first frame
 };
