@@ -467,6 +467,26 @@ TEST(EvaluateCli, PrintsThePipelineFactsAndThePerJointTable) {
     fs::remove(json);
 }
 
+TEST(EvaluateCli, SeveralRunsEndWithOneTableOverEveryClipAndASummary) {
+    // Two seeds of one clip, --brief: one line per run, then one row for the clip (the means
+    // over its seeds) and the summary line; the walk travels, so its drift is in % of the path.
+    const auto r = caphub::testing::caphub("evaluate --profile ideal --brief --seeds 1,2 --bvh " +
+                                           kWalk.string());
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_NE(r.output.find("cmu_12_01_walk.bvh seed 1: 17 joints "), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("cmu_12_01_walk.bvh seed 2: 17 joints "), std::string::npos)
+        << r.output;
+    EXPECT_EQ(r.output.find("| joint | segment |"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("| clip | seeds | angle deg | position cm | path m | drift | height "
+                            "mean cm | height max cm |"),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("| cmu_12_01_walk.bvh | 2 | "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(" % ("), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("summary over 1 clips: 17 joints "), std::string::npos) << r.output;
+}
+
 TEST(EvaluateCli, RejectsAMissingClipWithExitCode2) {
     const auto r = caphub::testing::caphub("evaluate --bvh /nonexistent/walk.bvh");
     EXPECT_EQ(r.exitCode, 2) << r.output;

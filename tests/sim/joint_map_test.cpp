@@ -71,6 +71,30 @@ TEST(JointMap, StartWalkStopClipGetsThe3dsMaxPreset) {
     EXPECT_EQ(b->orientationJoint[at(Segment::LClavicle)], joint(clip, "LeftCollar"));
 }
 
+TEST(JointMap, DazReleaseClipGetsTheDazPreset) {
+    // The Daz-friendly release of the CMU clips: root "hip", lThigh, lShin, ...; centimetres;
+    // frames 1-5 blend out of the rest pose, so the motion starts at frame 6; no toes.
+    const auto path = kShared / "cmu_16_36_run_daz.bvh";
+    if (!std::filesystem::exists(path)) {
+        GTEST_SKIP() << "shared data absent: " << path;
+    }
+    const BvhClip clip = load(path);
+    const JointMap* map = detectJointMap(clip);
+    ASSERT_NE(map, nullptr);
+    EXPECT_EQ(map->name, "cmu-daz");
+    EXPECT_EQ(map->unitM, 0.01);
+    EXPECT_EQ(map->firstFrame, 6);
+    const auto b = bindJointMap(*map, clip);
+    ASSERT_TRUE(b.ok()) << b.error().message;
+    for (const auto& s : board::kSegments) {
+        const bool toes = s.id == Segment::LMiddistal || s.id == Segment::RMiddistal;
+        EXPECT_EQ(b->mapped(s.id), !toes) << s.name;
+    }
+    EXPECT_EQ(b->orientationJoint[at(Segment::Pelvis)], joint(clip, "hip"));
+    EXPECT_EQ(b->orientationJoint[at(Segment::LThigh)], joint(clip, "lThigh"));
+    EXPECT_EQ(b->poseSource[at(Segment::LMiddistal)], Segment::LHindfoot);
+}
+
 TEST(JointMap, NoPresetForAnUnknownRig) {
     const BvhClip clip = load(kData / "unity_rig.bvh");
     EXPECT_EQ(detectJointMap(clip), nullptr);
