@@ -15,8 +15,6 @@ using board::Segment;
 using ::testing::HasSubstr;
 
 const std::filesystem::path kData = std::filesystem::path(CAPHUB_TEST_DATA_DIR) / "bvh";
-const std::filesystem::path kShared =
-    std::filesystem::path(CAPHUB_SOURCE_DIR) / ".." / "shared" / "data" / "bvh";
 
 BvhClip load(const std::filesystem::path& path) {
     auto r = loadBvh(path);
@@ -53,10 +51,7 @@ TEST(JointMap, MotionBuilderPresetMapsAll21Segments) {
 }
 
 TEST(JointMap, StartWalkStopClipGetsThe3dsMaxPreset) {
-    const auto path = kShared / "cmu_131_01_start_walk_stop.bvh";
-    if (!std::filesystem::exists(path)) {
-        GTEST_SKIP() << "shared data absent: " << path;
-    }
+    const auto path = kData / "cmu_131_01_start_walk_stop.bvh";
     const BvhClip clip = load(path);
     const JointMap* map = detectJointMap(clip);
     ASSERT_NE(map, nullptr);
@@ -74,10 +69,7 @@ TEST(JointMap, StartWalkStopClipGetsThe3dsMaxPreset) {
 TEST(JointMap, DazReleaseClipGetsTheDazPreset) {
     // The Daz-friendly release of the CMU clips: root "hip", lThigh, lShin, ...; centimetres;
     // frames 1-5 blend out of the rest pose, so the motion starts at frame 6; no toes.
-    const auto path = kShared / "cmu_16_36_run_daz.bvh";
-    if (!std::filesystem::exists(path)) {
-        GTEST_SKIP() << "shared data absent: " << path;
-    }
+    const auto path = kData / "cmu_16_36_run_daz.bvh";
     const BvhClip clip = load(path);
     const JointMap* map = detectJointMap(clip);
     ASSERT_NE(map, nullptr);
