@@ -199,11 +199,12 @@ std::string jumpClip() {
     return out;
 }
 
-// The walk's first `frames` frames (120 Hz) as a clip of its own in the temporary folder.
+// The walk's first `frames` frames (120 Hz) as a clip of its own in the temporary folder (named
+// by the process: ctest runs the tests that cut the same length side by side).
 fs::path walkCut(int frames) {
     std::ifstream in(kWalk);
     const fs::path out =
-        fs::temp_directory_path() / fmt::format("caphub_evaluate_cut{}.bvh", frames);
+        fs::temp_directory_path() / fmt::format("caphub_evaluate_{}_cut{}.bvh", ::getpid(), frames);
     std::ofstream cut(out, std::ios::trunc);
     std::string line;
     while (std::getline(in, line) && line.find("MOTION") == std::string::npos) {
@@ -436,8 +437,7 @@ TEST(EvaluateThroughTheFilter, AClipTooShortToScoreIsAnErrorNotAPerfectScore) {
     fs::remove(o.bvh);
     ASSERT_FALSE(r) << "scored " << r->score.frames << " poses, mean " << r->score.meanAngleDeg;
     EXPECT_EQ(r.error().code, EINVAL);
-    EXPECT_NE(r.error().message.find("caphub_evaluate_cut2.bvh' is too short to score"),
-              std::string::npos)
+    EXPECT_NE(r.error().message.find("_cut2.bvh' is too short to score"), std::string::npos)
         << r.error().message;
 }
 
