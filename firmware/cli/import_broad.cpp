@@ -159,6 +159,23 @@ BroadInputs expandBroadInputs(const std::vector<std::string>& inputs) {
     return out;
 }
 
+std::string importedBoardMetadata(const std::string& boardName, const std::string& boardText,
+                                  const std::vector<std::string>& names,
+                                  const std::vector<board::Segment>& segments) {
+    std::string meta = fmt::format("\n[board]\nname = \"{}\"\npath = \"\"\ntext = {}\n", boardName,
+                                   tomlString(boardText));
+    meta += "\n[sensors]\nnames = [";
+    for (std::size_t i = 0; i < names.size(); ++i) {
+        meta += fmt::format("{}{}", i == 0 ? "" : ", ", tomlString(names[i]));
+    }
+    meta += "]\nsegments = [";
+    for (std::size_t i = 0; i < segments.size(); ++i) {
+        meta += fmt::format("{}\"{}\"", i == 0 ? "" : ", ", board::segmentName(segments[i]));
+    }
+    meta += "]\n";
+    return meta;
+}
+
 int runBroadImport(const BroadImportArgs& a) {
     const BroadInputs inputs = expandBroadInputs(a.inputs);
     if (!inputs.error.empty()) {
@@ -326,17 +343,13 @@ int runBroadImport(const BroadImportArgs& a) {
     meta += fmt::format("source_board = {}\n", tomlString(boardName));
     meta += fmt::format("lost_samples = {}\n", lost);
     meta += "orientation = \"caphub's filter on the imported samples (as caphub reprocess)\"\n";
-    meta += "\n[board]\nname = \"imported-broad\"\npath = \"\"\n";
-    meta += fmt::format("text = {}\n", tomlString(boardText));
-    meta += "\n[sensors]\nnames = [";
-    for (std::size_t i = 0; i < streams.size(); ++i) {
-        meta += fmt::format("{}{}", i == 0 ? "" : ", ", tomlString(streams[i].name));
+    std::vector<std::string> sensorNames;
+    std::vector<board::Segment> sensorSegments;
+    for (const auto& st : streams) {
+        sensorNames.push_back(st.name);
+        sensorSegments.push_back(st.segment);
     }
-    meta += "]\nsegments = [";
-    for (std::size_t i = 0; i < streams.size(); ++i) {
-        meta += fmt::format("{}\"{}\"", i == 0 ? "" : ", ", board::segmentName(streams[i].segment));
-    }
-    meta += "]\n";
+    meta += importedBoardMetadata("imported-broad", boardText, sensorNames, sensorSegments);
     rec.metadata = meta;
 
     // Orientations and poses: the stages of `caphub run` over the samples, as `caphub reprocess`

@@ -32,6 +32,12 @@ struct BroadImportArgs {
 // Prints what it did, or the error (file:line:column for malformed input); the exit code.
 int runBroadImport(const BroadImportArgs& a);
 
+// The end of an imported recording's metadata, the same for every importer: the generated board
+// (`boardName`, its text) and the sensors' names and segments.
+std::string importedBoardMetadata(const std::string& boardName, const std::string& boardText,
+                                  const std::vector<std::string>& names,
+                                  const std::vector<board::Segment>& segments);
+
 // The files an input list stands for: folders expanded into their .csv / .csv.gz files (sorted,
 // without skeleton.csv[.gz]). Errors name the input.
 struct BroadInputs {

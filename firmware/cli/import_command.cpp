@@ -233,17 +233,11 @@ int runXsensImport(const ImportArgs& a) {
         lost += f.lostPackets;
     }
     meta += fmt::format("lost_samples = {}\n", lost);
-    meta += "\n[board]\nname = \"imported-xsens\"\npath = \"\"\n";
-    meta += fmt::format("text = {}\n", tomlString(boardText));
-    meta += "\n[sensors]\nnames = [";
-    for (std::size_t i = 0; i < files.size(); ++i) {
-        meta += fmt::format("{}{}", i == 0 ? "" : ", ", tomlString(files[i].deviceId));
+    std::vector<std::string> names;
+    for (const auto& f : files) {
+        names.push_back(f.deviceId);
     }
-    meta += "]\nsegments = [";
-    for (std::size_t i = 0; i < files.size(); ++i) {
-        meta += fmt::format("{}\"{}\"", i == 0 ? "" : ", ", board::segmentName(segments[i]));
-    }
-    meta += "]\n";
+    meta += importedBoardMetadata("imported-xsens", boardText, names, segments);
 
     // One time base: the packet counters of an Awinda take count the same packets; a file
     // starting later starts later in the take. The take starts 1 s into the capture clock.
