@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hal/core/angles.h"
+
 namespace caphub::fusion {
 
 namespace {
@@ -63,7 +65,7 @@ SampleErrors broadSampleErrors(const Quatd& est, const Quatd& opt) {
 
 BroadErrors broadMetric(const std::vector<Quatd>& estimate, const std::vector<Quatd>& truth,
                         const std::vector<bool>& movement) {
-    constexpr double kRadToDeg = 57.29577951308232;
+    using hal::kRadToDeg;
     double sumT = 0.0;
     double sumH = 0.0;
     double sumI = 0.0;

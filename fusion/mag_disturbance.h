@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "fusion/scalar_ops.h"
+#include "hal/core/angles.h"
 
 namespace caphub::fusion {
 
@@ -48,7 +49,7 @@ struct MagDisturbanceState {
 template <typename S>
 MagDisturbanceCoefficients<S> makeMagDisturbanceCoefficients(const MagDisturbanceParams& p,
                                                              double magPeriodS) {
-    constexpr double kDegToRad = 0.017453292519943295;
+    using hal::kDegToRad;
     using Coef = typename S::Coef;
     MagDisturbanceCoefficients<S> c;
     c.refK = fromDouble<Coef>(magPeriodS / (p.refTauS + magPeriodS));

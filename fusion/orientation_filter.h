@@ -10,6 +10,7 @@
 #include "fusion/mag_disturbance.h"
 #include "fusion/rest_detector.h"
 #include "fusion/scalar_ops.h"
+#include "hal/core/angles.h"
 
 namespace caphub::fusion {
 
@@ -240,7 +241,7 @@ bool finiteState(const FilterState<S>& s) {
 
 template <typename S>
 void OrientationFilter<S>::setup(const FilterParams& p) {
-    constexpr double kDegToRad = 0.017453292519943295;
+    using hal::kDegToRad;
     params_ = p;
     rejections_ = FilterRejections{};
     configured_ = invalidFilterParameter(p) == nullptr;

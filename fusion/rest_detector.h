@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "fusion/scalar_ops.h"
+#include "hal/core/angles.h"
 
 namespace caphub::fusion {
 
@@ -42,7 +43,7 @@ struct RestState {
 template <typename S>
 RestCoefficients<S> makeRestCoefficients(const RestParams& p, double gyrPeriodS,
                                          double accPeriodS) {
-    constexpr double kDegToRad = 0.017453292519943295;
+    using hal::kDegToRad;
     RestCoefficients<S> c;
     c.gyrLpK = fromDouble<typename S::Coef>(gyrPeriodS / (p.filterTauS + gyrPeriodS));
     c.accLpK = fromDouble<typename S::Coef>(accPeriodS / (p.filterTauS + accPeriodS));

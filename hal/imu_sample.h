@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include "hal/core/angles.h"
 #include "hal/core/time.h"
 
 namespace caphub::hal {
@@ -25,6 +26,5 @@ struct ImuSample {
 };
 
 inline constexpr double kStandardGravity = 9.80665;  // m/s^2 per g (the datasheets' g)
-inline constexpr double kPi = 3.14159265358979323846;
 
 }  // namespace caphub::hal

@@ -158,12 +158,13 @@ Mat4f perspective(float fovYRad, float aspect, float nearM, float farM) {
     return m;
 }
 
-struct LineVertex {
+}  // namespace
+
+// One vertex of the grid, bones and markers (a member type of the GL state, so not file-local).
+struct RendererLineVertex {
     float p[3];
     float c[3];
 };
-
-}  // namespace
 
 struct Renderer::Gl {
     OSMesaContext ctx = nullptr;
@@ -173,7 +174,7 @@ struct Renderer::Gl {
     GLuint lineVao = 0, lineVbo = 0;
     GLsizei indexCount = 0;
     GLint meshViewProj = -1, meshColor = -1, lineViewProj = -1, linePointSize = -1;
-    std::vector<LineVertex> lines;
+    std::vector<RendererLineVertex> lines;
     std::size_t gridVertices = 0;
 
     ~Gl() {
@@ -264,10 +265,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Skin& skin, const Rende
     glBindVertexArray(gl.lineVao);
     glGenBuffers(1, &gl.lineVbo);
     glBindBuffer(GL_ARRAY_BUFFER, gl.lineVbo);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(LineVertex),
-                          reinterpret_cast<void*>(offsetof(LineVertex, p)));
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(LineVertex),
-                          reinterpret_cast<void*>(offsetof(LineVertex, c)));
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(RendererLineVertex),
+                          reinterpret_cast<void*>(offsetof(RendererLineVertex, p)));
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(RendererLineVertex),
+                          reinterpret_cast<void*>(offsetof(RendererLineVertex, c)));
     glEnableVertexAttribArray(0);
     glEnableVertexAttribArray(1);
     glBindVertexArray(0);
@@ -310,7 +311,7 @@ Result<void> Renderer::render(const FrameInput& frame, Image& out, StageTimes* t
     gl.lines.resize(gl.gridVertices);
     const auto& J = frame.jointsM;
     auto f3 = [](const Vec3d& v, float r, float g, float b) {
-        return LineVertex{
+        return RendererLineVertex{
             {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())},
             {r, g, b}};
     };
@@ -357,7 +358,8 @@ Result<void> Renderer::render(const FrameInput& frame, Image& out, StageTimes* t
         }
     }
     glBindBuffer(GL_ARRAY_BUFFER, gl.lineVbo);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(gl.lines.size() * sizeof(LineVertex)),
+    glBufferData(GL_ARRAY_BUFFER,
+                 static_cast<GLsizeiptr>(gl.lines.size() * sizeof(RendererLineVertex)),
                  gl.lines.data(), GL_STREAM_DRAW);
     const std::int64_t t1 = nowNs();
 

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hal/core/angles.h"
+
 namespace caphub::board::sim {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
+using hal::kDegToRad;
+using hal::kPi;
 
 // The tumble: about a fixed horizontal axis at this rate and about the body's x axis at a rate
 // whose ratio to it is irrational, so that the field sweeps every direction of the sensor frame.

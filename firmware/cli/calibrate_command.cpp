@@ -23,6 +23,7 @@
 #include "fusion/calibration/ellipsoid_fit.h"
 #include "fusion/calibration/gyro_bias.h"
 #include "fusion/calibration/imu_axes.h"
+#include "hal/core/angles.h"
 
 namespace caphub::firmware {
 
@@ -31,7 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 namespace bs = board::sim;
 
-constexpr double kRadToDeg = 180.0 / hal::kPi;
+using hal::kRadToDeg;
 
 enum class Kind { Gyro, Accel, Mag };
 

@@ -20,7 +20,7 @@ namespace caphub::firmware {
 
 namespace {
 
-struct ReplayOptions {
+struct FusionReplayOptions {
     std::vector<std::string> inputs;
     std::string output;
     double rateHz = 0.0;
@@ -97,7 +97,7 @@ std::string describeRejections(const fusion::FilterRejections& r) {
     return text;
 }
 
-int runReplay(const ReplayOptions& o) {
+int runReplay(const FusionReplayOptions& o) {
     if (!o.output.empty() && o.inputs.size() != 1) {
         fmt::print(stderr, "caphub fusion replay: --out takes exactly one --in file\n");
         return kExitUsage;
@@ -358,7 +358,7 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
     CLI::App* fusion = app.add_subcommand(
         "fusion", "Run the orientation filter on recorded IMU data and score it");
     fusion->require_subcommand(1);
-    auto opts = std::make_shared<ReplayOptions>();
+    auto opts = std::make_shared<FusionReplayOptions>();
     CLI::App* replay = fusion->add_subcommand(
         "replay",
         "Run the filter over BROAD-layout files (t, gyr, acc, mag[, opt quaternion, movement]); "

@@ -8,6 +8,7 @@
 #include "board/sim/scripted_motion.h"
 #include "firmware/calibration_file.h"
 #include "firmware/sensor_calibration_steps.h"
+#include "hal/core/angles.h"
 #include "hal/core/log.h"
 
 namespace caphub::firmware::serve {
@@ -18,7 +19,7 @@ using Json = nlohmann::ordered_json;
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / hal::kPi;
+using hal::kRadToDeg;
 
 const char* kindName(SensorCalibrationKind k) {
     switch (k) {

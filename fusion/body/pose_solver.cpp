@@ -2,7 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
+
+#include "hal/core/angles.h"
 
 namespace caphub::body {
 
@@ -12,9 +13,9 @@ using S = Segment;
 
 // The spine from the root up: the chain whose unsensored members share the rotation between
 // the nearest sensors around them.
-constexpr std::array<S, 5> kSpine = {S::Pelvis, S::L5, S::T12, S::C7, S::Skull};
+constexpr std::array<S, 5> kSpineChain = {S::Pelvis, S::L5, S::T12, S::C7, S::Skull};
 
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+using hal::kRadToDeg;
 
 }  // namespace
 
@@ -27,26 +28,26 @@ PoseSolver::PoseSolver(SegmentMask sensors, const PoseSolverOptions& options)
     }
     // Spine: each unsensored member between two sensored ones takes its share, in proportion to
     // the number of joints, of the rotation between them.
-    for (std::size_t a = 0; a < kSpine.size(); ++a) {
-        if (!has(sensors, idx(kSpine[a]))) {
+    for (std::size_t a = 0; a < kSpineChain.size(); ++a) {
+        if (!has(sensors, idx(kSpineChain[a]))) {
             continue;
         }
         std::size_t b = a + 1;
-        while (b < kSpine.size() && !has(sensors, idx(kSpine[b]))) {
+        while (b < kSpineChain.size() && !has(sensors, idx(kSpineChain[b]))) {
             ++b;
         }
-        if (b == kSpine.size()) {
+        if (b == kSpineChain.size()) {
             break;
         }
         for (std::size_t m = a + 1; m < b; ++m) {
-            const auto u = static_cast<std::size_t>(idx(kSpine[m]));
+            const auto u = static_cast<std::size_t>(idx(kSpineChain[m]));
             rules_[u] = SegmentRule::SpineShare;
-            shares_[u] = {idx(kSpine[a]), idx(kSpine[b]),
+            shares_[u] = {idx(kSpineChain[a]), idx(kSpineChain[b]),
                           static_cast<double>(m - a) / static_cast<double>(b - a)};
         }
     }
     if (!has(sensors, idx(S::Pelvis))) {
-        for (S s : kSpine) {
+        for (S s : kSpineChain) {
             if (has(sensors, idx(s))) {
                 rootSource_ = idx(s);
                 break;

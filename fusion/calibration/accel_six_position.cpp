@@ -4,11 +4,13 @@
 
 #include <fmt/format.h>
 
+#include "hal/core/angles.h"
+
 namespace caphub::fusion {
 
 Result<AccelSixPositionResult> calibrateAccelSixPosition(const std::array<Vec3d, 6>& pos,
                                                          const AccelSixPositionParams& p) {
-    constexpr double kDegToRad = 0.017453292519943295;
+    using hal::kDegToRad;
     static constexpr const char* kAxis = "xyz";
     // Sort the positions by the axis they point along and its sign: [axis][0 = up, 1 = down].
     int slot[3][2] = {{-1, -1}, {-1, -1}, {-1, -1}};

@@ -4,10 +4,12 @@
 
 #include <fmt/format.h>
 
+#include "hal/core/angles.h"
+
 namespace caphub::fusion {
 
 Result<GyroBiasResult> estimateGyroBias(std::span<const Vec3d> gyr, const GyroBiasParams& p) {
-    constexpr double kRadToDeg = 57.29577951308232;
+    using hal::kRadToDeg;
     if (static_cast<int>(gyr.size()) < p.minSamples) {
         return Error{EINVAL, fmt::format("gyro bias: {} samples, need at least {}", gyr.size(),
                                          p.minSamples)};

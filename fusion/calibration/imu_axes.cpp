@@ -8,12 +8,13 @@
 #include <fmt/format.h>
 
 #include "fusion/calibration/ellipsoid_fit.h"
+#include "hal/core/angles.h"
 
 namespace caphub::fusion {
 
 namespace {
 
-constexpr double kRadToDeg = 57.29577951308232;
+using hal::kRadToDeg;
 
 // Gauss-Newton on x, the Jacobian of residuals(x) by central differences of the given step;
 // stops when a step is shorter than tolerance. False when the normal equations are singular
@@ -160,7 +161,7 @@ Result<AccelAxesResult> calibrateAccelAxes(std::span<const Vec3d> pos, const Acc
 Result<GyroAxesResult> calibrateGyroAxes(std::span<const Vec3d> gyr, double rateHz,
                                          std::span<const StillInterval> positions,
                                          const AccelAxesResult& accel, const GyroAxesParams& p) {
-    constexpr double kDegToRad = 1.0 / kRadToDeg;
+    using hal::kDegToRad;
     if (!(rateHz > 0)) {
         return Error{EINVAL, "gyro axes: the rate must be positive"};
     }

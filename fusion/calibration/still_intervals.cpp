@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hal/core/angles.h"
+
 namespace caphub::fusion {
 
 namespace {
 
-constexpr double kRadToDeg = 57.29577951308232;
+using hal::kRadToDeg;
 
 Vec3d meanOf(std::span<const Vec3d> v) {
     Vec3d mean = Vec3d::Zero();

@@ -13,8 +13,6 @@ namespace caphub::hal::sim {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / kPi;
-
 void putBe16(std::uint8_t* p, std::int16_t v) {
     const auto u = static_cast<std::uint16_t>(v);
     p[0] = static_cast<std::uint8_t>(u >> 8);
