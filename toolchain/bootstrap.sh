@@ -15,6 +15,9 @@ program_packages=(
   # Render: OSMesa, PNG, JPEG, HTTP, glTF.
   libosmesa6-dev mesa-common-dev libpng-dev libturbojpeg0-dev libcpp-httplib-dev libtinygltf-dev
   nlohmann-json3-dev libstb-dev
+  # libturbojpeg0-dev's CMake package also names libjpeg.so.62 and libjpeg.a (libjpeg62-turbo-dev)
+  # without depending on them: find_package(libjpeg-turbo) fails on a fresh machine without it.
+  libjpeg62-turbo-dev
   # Live streams: OSC (VMC, VRChat, caphub's own) with liblo.
   liblo-dev
   # caphub serve: password hashing (libsodium), three.js for its page; the main job's scripted
