@@ -5,6 +5,7 @@
 
 #include <fcntl.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include "firmware/recording/crc32c.h"
@@ -32,6 +33,22 @@ void putRecordCrc(std::uint8_t* r) {
     put32(r + kRecordHeaderBytes + payload, crc);
 }
 
+// Gives the file `from` the name `to` unless `to` exists (then -EEXIST): renameat2's
+// RENAME_NOREPLACE, or where the file system lacks it, a hard link and the old name removed.
+int publishNoReplace(const std::string& from, const std::string& to) {
+    if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE) == 0) {
+        return 0;
+    }
+    if (errno != EINVAL && errno != ENOSYS) {
+        return -errno;
+    }
+    if (::link(from.c_str(), to.c_str()) < 0) {
+        return -errno;
+    }
+    (void)::unlink(from.c_str());
+    return 0;
+}
+
 // Why the writer stopped, in the stop event's text (the error itself is in its error field).
 constexpr std::string_view kStopText = "write error";
 
@@ -43,7 +60,17 @@ Result<std::unique_ptr<RecordingWriter>> RecordingWriter::create(const std::stri
     if (metadataToml.size() > kMaxPayloadBytes) {
         return Error{EINVAL, "recording '" + path + "': metadata too large"};
     }
-    hal::UniqueFd fd(::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644));
+    // The file is written under a hidden name beside the target and appears under its own name
+    // only with its header on the disk: a crash in between leaves no recording without a header.
+    if (::access(path.c_str(), F_OK) == 0) {
+        return errnoError(EEXIST, "cannot create recording '" + path + "'");
+    }
+    const auto slash = path.rfind('/');
+    const std::string dir = slash == std::string::npos ? "." : path.substr(0, slash + 1);
+    const std::string creating = path.substr(0, slash + 1) + "." + path.substr(slash + 1) +
+                                 ".creating";  // slash + 1 is 0 without a slash
+    (void)::unlink(creating.c_str());          // left by a crash in this window; never a recording
+    hal::UniqueFd fd(::open(creating.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644));
     if (!fd.isValid()) {
         return errnoError(errno, "cannot create recording '" + path + "'");
     }
@@ -58,14 +85,19 @@ Result<std::unique_ptr<RecordingWriter>> RecordingWriter::create(const std::stri
     crc = crc32c(std::span(header.data() + kHeaderFixedBytes, metadataToml.size()), crc);
     put32(&header[16], crc);
     if (int r = w->writeAll(header.data(), header.size()); r < 0) {
+        (void)::unlink(creating.c_str());
         return errnoError(r, "cannot write the header of recording '" + path + "'");
     }
     if (::fdatasync(w->fd_.get()) < 0) {
-        return errnoError(errno, "cannot sync recording '" + path + "'");
+        const int e = errno;
+        (void)::unlink(creating.c_str());
+        return errnoError(e, "cannot sync recording '" + path + "'");
+    }
+    if (int r = publishNoReplace(creating, path); r < 0) {
+        (void)::unlink(creating.c_str());
+        return errnoError(r, "cannot create recording '" + path + "'");
     }
     // The directory entry must be durable too, or a power cut could lose the whole file.
-    const auto slash = path.rfind('/');
-    const std::string dir = slash == std::string::npos ? "." : path.substr(0, slash + 1);
     hal::UniqueFd dirFd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
     if (dirFd.isValid()) {
         (void)::fsync(dirFd.get());

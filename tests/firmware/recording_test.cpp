@@ -210,6 +210,38 @@ TEST(Recording, RefusesToOverwriteAFile) {
     EXPECT_THAT(again.error().message, ::testing::HasSubstr("File exists"));
 }
 
+TEST(Recording, RefusesToReplaceADanglingSymlink) {
+    const std::string path = tempPath("dangling");
+    const std::string target = path + ".nowhere";
+    fs::remove(target);
+    fs::create_symlink(target, path);
+    const auto w = RecordingWriter::create(path, "");
+    ASSERT_FALSE(w.ok());
+    EXPECT_THAT(w.error().message, ::testing::HasSubstr("File exists"));
+    EXPECT_TRUE(fs::is_symlink(path));
+    EXPECT_FALSE(fs::exists(target));
+    fs::remove(path);
+}
+
+// The file takes its name only with its header on the disk (docs/recording-format.md): what a
+// crash before that left under the hidden name is replaced, and nothing is left beside it.
+TEST(Recording, AppearsUnderItsNameWithItsHeaderAndLeavesNothingBeside) {
+    const std::string path = tempPath("appears");
+    const fs::path p(path);
+    const fs::path creating = p.parent_path() / ("." + p.filename().string() + ".creating");
+    writeFile(creating.string(), {'t', 'o', 'r', 'n'});
+    {
+        auto w = RecordingWriter::create(path, "a = 1\n");
+        ASSERT_TRUE(w.ok()) << w.error().message;
+        EXPECT_FALSE(fs::exists(creating));
+        EXPECT_TRUE(RecordingReader::open(path).ok());  // the header is there from the start
+        ASSERT_EQ((*w)->writeRawSample(0, sample(0)), 0);
+        ASSERT_EQ((*w)->close(), 0);
+    }
+    EXPECT_EQ(readBack(path).seqs, std::vector<int>{0});
+    EXPECT_FALSE(fs::exists(creating));
+}
+
 TEST(Recording, ANonRecordingIsRefusedClearly) {
     const std::string path = tempPath("notcap");
     writeFile(path, {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd',
