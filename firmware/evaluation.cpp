@@ -369,6 +369,9 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         r.gyroClipEvents.push_back(fusion.clipEvents(static_cast<int>(i)));
         r.magModes.push_back(fusion.magMode(static_cast<int>(i)));
         r.magEstimates.push_back(fusion.magEstimate(static_cast<int>(i)));
+        const FusionStage::HeadingStep& step = fusion.headingStep(static_cast<int>(i));
+        r.headingSteps.push_back(
+            {step.count, toSeconds(step.t - start), step.angleRad * 180.0 / hal::kPi});
     }
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
@@ -450,6 +453,41 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         }
         if (!modes.empty()) {
             out.insert(out.size() - 1, fmt::format("magnetometers at the end: {}\n", modes));
+        }
+        // When each free heading was measured and stepped to magnetic north (and which never were
+        // though free at the end).
+        std::string steps;
+        for (std::size_t i = 0; i < r.headingSteps.size() && i < b.sensors.size(); ++i) {
+            const auto& st = r.headingSteps[i];
+            if (st.count > 0) {
+                steps += fmt::format("{}{} {:.1f} s ({:+.1f} deg{})", steps.empty() ? "" : ", ",
+                                     b.sensors[i].name, st.atS, st.angleDeg,
+                                     st.count > 1 ? fmt::format(", {} steps", st.count) : "");
+            }
+        }
+        // Why a heading is still free at the end: the estimate's figures (docs/fusion.md).
+        std::string freeWhy;
+        for (std::size_t i = 0; i < r.magModes.size() && i < b.sensors.size(); ++i) {
+            if (r.magModes[i] != MagMode::Estimating || i >= r.magEstimates.size()) {
+                continue;
+            }
+            const fusion::HardIronEstimate& e = r.magEstimates[i];
+            freeWhy += fmt::format(
+                "{}{} ({})", freeWhy.empty() ? "" : ", ", b.sensors[i].name,
+                !e.valid ? std::string("too few readings")
+                         : fmt::format("{}spread {:.3f}, residual {:.1f} %, field {:.1f} uT",
+                                       e.good ? "good, heading error not yet steady: " : "",
+                                       e.spread, e.residualPct, e.fieldNormUt));
+        }
+        if (!freeWhy.empty()) {
+            out.insert(out.size() - 1,
+                       fmt::format("gyroscope-only at the end, the estimate: {}\n", freeWhy));
+        }
+        if (!steps.empty()) {
+            out.insert(out.size() - 1,
+                       fmt::format("gyroscope-only headings stepped to magnetic (s from the start, "
+                                   "lead-in included): {}\n",
+                                   steps));
         }
     }
     if (!clipped.empty()) {

@@ -78,6 +78,14 @@ struct EvaluateResult {
     // estimate (docs/fusion.md, "No magnetometer calibration").
     std::vector<MagMode> magModes;
     std::vector<fusion::HardIronEstimate> magEstimates;
+    // Per sensor, its free (gyroscope-only) heading's steps to magnetic north: how many, and the
+    // latest's time (s from the start of the capture, the lead-in included) and angle (deg).
+    struct HeadingStepFigure {
+        std::uint32_t count = 0;
+        double atS = 0;
+        double angleDeg = 0;
+    };
+    std::vector<HeadingStepFigure> headingSteps;
     double wallS = 0;
     // With reprocessSmooth: the smoothed poses' score, and the reprocess's computing time.
     std::optional<body::PoseScore> smoothed;

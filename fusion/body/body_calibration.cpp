@@ -55,10 +55,11 @@ Result<void> checkFrame(const SensorFrame& f, std::string_view what) {
 // estimated through the nominal mountings.
 double estimateHeading(ReferencePoseKind pose, const SensorFrame& f, const CalibrationOptions& o) {
     const Quatd qWorldEnu = enuFromSkeletonWorld().conjugate();
+    const SegmentMask from = (f.mask & o.headingFrom) != 0 ? f.mask & o.headingFrom : f.mask;
     double s = 0;
     double c = 0;
     for (int i = 0; i < kSegmentCount; ++i) {
-        if (!has(f.mask, i)) {
+        if (!has(from, i)) {
             continue;
         }
         const auto u = static_cast<std::size_t>(i);

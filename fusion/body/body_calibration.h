@@ -60,6 +60,10 @@ struct CalibrationOptions {
     // estimated from the sensors through their nominal mountings (the circular mean).
     std::optional<double> headingRad;
     std::array<Quatd, kSegmentCount> nominalMounting;  // from the board file
+    // The segments whose sensors the heading is estimated from: those whose headings are
+    // magnetic (a sensor whose heading is still the gyroscope's alone is off north by an angle
+    // of its own). None of the frame's among them: all of the frame's.
+    SegmentMask headingFrom = ~SegmentMask{0};
     CalibrationOptions() { nominalMounting.fill(Quatd::Identity()); }
 };
 

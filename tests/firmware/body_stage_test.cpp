@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -229,6 +230,78 @@ TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMa
     ASSERT_TRUE(next.setMagEstimatorState(sensor, *fusion.magEstimatorState(sensor)));
     EXPECT_TRUE(next.magEstimate(sensor).good);
     EXPECT_EQ(next.magEstimate(sensor).offsetUt, fusion.magEstimate(sensor).offsetUt);
+}
+
+// The same sensor, free (gyroscope-only) while the estimate learns: the moment the estimate is
+// good, the heading error is averaged over ~2 s of readings and the filter's heading is turned by
+// it in one step, reported (count, angle, time) for the stages after. The angle is the one
+// between the truth and the free heading before the step, and the orientation is right from the
+// step on (no slow blend).
+TEST(FusionStage, StepsAFreeHeadingToMagneticNorthAndReportsTheAngle) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    const int sensor = 6;
+    const double odr = b.sensors[sensor].achievedOdrHz;
+    const double magOdr = b.sensors[sensor].magOdrHz > 0 ? b.sensors[sensor].magOdrHz : odr;
+    const int magEvery = std::max(1, static_cast<int>(std::lround(odr / magOdr)));
+    const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
+    const Eigen::Vector3d offset(-150.0, 90.0, 40.0);
+    Quatd truth(Eigen::AngleAxisd(-75.0 * hal::kPi / 180.0, Eigen::Vector3d::UnitZ()));
+    const double dt = 1.0 / odr;
+    firmware::SensorSample s;
+    s.sensor = sensor;
+    Timestamp t{1s};
+    // Heading of a rotation that is (nearly) about ENU up: Rz(a) takes north to (-sin a, cos a).
+    const auto yawOf = [](const Quatd& r) {
+        const Eigen::Vector3d n = r * Eigen::Vector3d::UnitY();
+        return std::atan2(-n.x(), n.y());
+    };
+    std::optional<double> expected;
+    double errAtStepDeg = -1;
+    bool freeBefore = true;
+    for (int i = 0; i < static_cast<int>(300 * odr) && !expected; ++i) {
+        const double tau = static_cast<double>(i) * dt;
+        const Eigen::Vector3d w =
+            i < static_cast<int>(3 * odr)
+                ? Eigen::Vector3d::Zero()
+                : Eigen::Vector3d(1.1 * std::cos(0.37 * tau), 1.3 * std::sin(0.29 * tau),
+                                  0.9 * std::cos(0.17 * tau));
+        const Quatd before = fusion.latest(sensor) != nullptr
+                                 ? fusion.latest(sensor)->orientation.cast<double>()
+                                 : Quatd::Identity();
+        const Quatd truthBefore = truth;
+        if (w.norm() > 0) {
+            truth = (truth * Quatd(Eigen::AngleAxisd(w.norm() * dt, w.normalized()))).normalized();
+        }
+        s.sample.gyrRadps = w.cast<float>();
+        s.sample.accMps2 = (truth.conjugate() * Eigen::Vector3d(0, 0, 9.81)).cast<float>();
+        s.sample.magUt = (truth.conjugate() * field + offset).cast<float>();
+        s.sample.flags = (i % magEvery == 0) ? hal::ImuSample::kMagFresh : 0;
+        s.sample.t = t;
+        t += periodFromHz(odr);
+        const bool freeNow = fusion.headingFree(sensor);
+        fusion.onSample(s);
+        if (fusion.headingStep(sensor).count > 0) {
+            freeBefore = freeNow;
+            expected = yawOf(truthBefore * before.conjugate());
+            errAtStepDeg =
+                fusion.latest(sensor)->orientation.cast<double>().angularDistance(truth) * 180 /
+                hal::kPi;
+        }
+    }
+    ASSERT_TRUE(expected) << "no step in 300 s";
+    const firmware::FusionStage::HeadingStep& step = fusion.headingStep(sensor);
+    EXPECT_EQ(step.count, 1U);
+    EXPECT_EQ(step.t, t - periodFromHz(odr));
+    EXPECT_TRUE(freeBefore);
+    EXPECT_FALSE(fusion.headingFree(sensor));
+    EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Online);
+    // The free heading started where the first sample put it (the truth's -75 deg unknown to it),
+    // and drifted little since: the step is about that.
+    EXPECT_GT(std::abs(*expected), 30 * hal::kPi / 180);
+    EXPECT_NEAR(std::remainder(step.angleRad - *expected, 2 * hal::kPi), 0.0, 2.0 * hal::kPi / 180);
+    EXPECT_LT(errAtStepDeg, 3.0);
+    EXPECT_EQ(fusion.alignReadings(sensor), static_cast<std::uint32_t>(std::lround(2 * magOdr)));
 }
 
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
