@@ -198,6 +198,7 @@ MountingErrors mountingErrors(
             180.0 / hal::kPi;
         m.meanDeg += e;
         m.maxDeg = std::max(m.maxDeg, e);
+        m.perSensorDeg.push_back(e);
         m.nominalMeanDeg += sc.mounting.angularDistance(truth) * 180.0 / hal::kPi;
     }
     const double n = static_cast<double>(b.sensors.size());
@@ -376,6 +377,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
     r.mountingErrorMaxDeg = m.maxDeg;
+    r.mountingErrorDeg = m.perSensorDeg;
     r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
 
     if (o.reprocessSmooth) {
@@ -430,6 +432,19 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         "deg max (the board's nominal ones: {:.2f} deg mean)\n\n",
         r.calibration, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
         r.nominalMountingErrorMeanDeg);
+    {
+        // The mountings far off (a heading that was free or unchecked at the calibration).
+        std::string far;
+        for (std::size_t i = 0; i < r.mountingErrorDeg.size() && i < b.sensors.size(); ++i) {
+            if (r.mountingErrorDeg[i] > 10.0) {
+                far += fmt::format("{}{} {:.1f}", far.empty() ? "" : ", ", b.sensors[i].name,
+                                   r.mountingErrorDeg[i]);
+            }
+        }
+        if (!far.empty()) {
+            out.insert(out.size() - 1, fmt::format("mountings more than 10 deg off: {}\n", far));
+        }
+    }
     std::string clipped;
     for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {
         if (r.gyroClipEvents[i] > 0) {

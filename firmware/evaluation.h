@@ -27,6 +27,7 @@ struct MountingErrors {
     double meanDeg = 0;
     double maxDeg = 0;
     double nominalMeanDeg = 0;
+    std::vector<double> perSensorDeg;  // in the board's order
 };
 MountingErrors mountingErrors(
     const body::BodyCalibration& calibration, const board::Board& b,
@@ -71,6 +72,7 @@ struct EvaluateResult {
     // nominal mountings against the same.
     double mountingErrorMeanDeg = 0;
     double mountingErrorMaxDeg = 0;
+    std::vector<double> mountingErrorDeg;  // per board sensor
     double nominalMountingErrorMeanDeg = 0;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
