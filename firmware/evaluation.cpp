@@ -499,10 +499,23 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
                        fmt::format("gyroscope-only at the end, the estimate: {}\n", freeWhy));
         }
         if (!steps.empty()) {
+            // The stepped sensors' mountings: what the re-expression gave them.
+            double sum = 0;
+            double worst = 0;
+            int n = 0;
+            for (std::size_t i = 0; i < r.headingSteps.size() && i < r.mountingErrorDeg.size();
+                 ++i) {
+                if (r.headingSteps[i].count > 0) {
+                    sum += r.mountingErrorDeg[i];
+                    worst = std::max(worst, r.mountingErrorDeg[i]);
+                    ++n;
+                }
+            }
             out.insert(out.size() - 1,
                        fmt::format("gyroscope-only headings stepped to magnetic (s from the start, "
-                                   "lead-in included): {}\n",
-                                   steps));
+                                   "lead-in included): {}; their {} mountings {:.2f} deg mean, "
+                                   "{:.2f} deg max off the true ones\n",
+                                   steps, n, n > 0 ? sum / n : 0.0, worst));
         }
     }
     if (!clipped.empty()) {

@@ -112,6 +112,12 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
             state.bias = f.bias();
             state.clipEvents = f.clipEvents();
             f.setState(state);
+            if (onlineMag_[i]) {
+                // A heading error averaged against the old orientation says nothing of the new.
+                onlineMag_[i]->alignCount = 0;
+                onlineMag_[i]->sumSin = 0;
+                onlineMag_[i]->sumCos = 0;
+            }
             resetPending_[i] = true;
             ++resets_[i];
             return;

@@ -274,8 +274,9 @@ void BodyTracker::forget(std::size_t sensor) {
     }
     // A free heading starts afresh too: the calibration's orientations of the sensor are in a
     // frame that is gone, and no later measurement of the new one can re-express them.
-    if (calibrationInput_) {
+    if (calibrationInput_ && (calibrationInput_->free & bit(sensors_[sensor].segment)) != 0) {
         calibrationInput_->free &= ~bit(sensors_[sensor].segment);
+        calibrationInput_->lost |= bit(sensors_[sensor].segment);
     }
 }
 
@@ -353,7 +354,7 @@ Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& 
     // The capture heading from the sensors whose headings are corrected; failing any, from all
     // (a free heading is off by an angle of its own, an unchecked one by whatever its offset
     // makes it: neither is better than the other).
-    copt.headingFrom = ~(in.free | in.unchecked);
+    copt.headingFrom = ~(in.free | in.unchecked | in.lost);
     if (in.method == CalibrationMethod::TPlusN) {
         return calibrateTwoPose(in.frames[0], in.frames[1], copt, tNs);
     }

@@ -210,7 +210,8 @@ private:
         std::array<SensorFrame, 2> frames;  // the averaged orientations (T+N: the T-pose first)
         SegmentMask free = 0;               // segments whose sensors' headings were free
         SegmentMask unchecked = 0;          // ... or magnetic but unchecked
-        double headingRad = 0;              // the capture heading the calibration estimated
+        SegmentMask lost = 0;   // free, then the sensor's filter restarted: never re-expressed
+        double headingRad = 0;  // the capture heading the calibration estimated
     };
     struct Request {
         CalibrationMethod method = CalibrationMethod::None;
