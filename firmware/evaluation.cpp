@@ -1,6 +1,7 @@
 #include "firmware/evaluation.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <fstream>
 #include <map>
@@ -379,6 +380,11 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.mountingErrorMaxDeg = m.maxDeg;
     r.mountingErrorDeg = m.perSensorDeg;
     r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
+    for (const auto& sc : b.sensors) {
+        const body::BodyCalibration& cal = bodyStage.calibration();
+        r.nominalHeading.push_back(
+            body::has(cal.nominalHeading & cal.freeHeading & cal.mask, body::idx(sc.segment)));
+    }
 
     if (o.reprocessSmooth) {
         // The capture's samples again, as `caphub reprocess --smooth` would take them from its
@@ -443,6 +449,31 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         }
         if (!far.empty()) {
             out.insert(out.size() - 1, fmt::format("mountings more than 10 deg off: {}\n", far));
+        }
+        // By mode, when any came from the nominal heading (docs/body-calibration.md, "Free
+        // headings"): the rest were measured.
+        std::array<std::vector<std::string>, 2> names;
+        std::array<double, 2> sum{};
+        std::array<double, 2> worst{};
+        for (std::size_t i = 0;
+             i < r.nominalHeading.size() && i < r.mountingErrorDeg.size() && i < b.sensors.size();
+             ++i) {
+            const std::size_t k = r.nominalHeading[i] ? 0 : 1;
+            names[k].push_back(b.sensors[i].name);
+            sum[k] += r.mountingErrorDeg[i];
+            worst[k] = std::max(worst[k], r.mountingErrorDeg[i]);
+        }
+        if (!names[0].empty()) {
+            auto part = [&](std::size_t k, std::string_view mode) {
+                return names[k].empty()
+                           ? fmt::format("0 {}", mode)
+                           : fmt::format("{} {} {:.2f} deg mean, {:.2f} deg max", names[k].size(),
+                                         mode, sum[k] / static_cast<double>(names[k].size()),
+                                         worst[k]);
+            };
+            out.insert(out.size() - 1,
+                       fmt::format("mountings by mode: {} ({}); {}\n", part(0, "nominal-heading"),
+                                   fmt::join(names[0], " "), part(1, "measured")));
         }
     }
     std::string clipped;

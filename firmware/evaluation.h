@@ -74,6 +74,10 @@ struct EvaluateResult {
     double mountingErrorMaxDeg = 0;
     std::vector<double> mountingErrorDeg;  // per board sensor
     double nominalMountingErrorMeanDeg = 0;
+    // Per board sensor at the end: its mounting's mode. true: nominal-heading (its heading was
+    // free at the calibration and has not been measured since: the rotation about the vertical
+    // is the nominal mounting's, the rest from gravity); false: measured.
+    std::vector<bool> nominalHeading;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
     // Per board sensor at the end of the run: its heading source and its online hard-iron

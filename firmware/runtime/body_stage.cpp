@@ -195,11 +195,17 @@ void BodyStage::record(Timestamp t, const body::TrackerEvents& events) {
         return;
     }
     const body::BodyCalibration& cal = tracker_.calibration();
-    const std::string what = events.calibrated
-                                 ? fmt::format("body calibration: {} pose, {} segments",
-                                               body::toString(cal.method), std::popcount(cal.mask))
-                                 : fmt::format("heading reset: heading {:.1f} deg",
-                                               cal.headingRad * 180 / std::numbers::pi);
+    std::string what = events.calibrated
+                           ? fmt::format("body calibration: {} pose, {} segments",
+                                         body::toString(cal.method), std::popcount(cal.mask))
+                           : fmt::format("heading reset: heading {:.1f} deg",
+                                         cal.headingRad * 180 / std::numbers::pi);
+    if (events.calibrated && (cal.freeHeading & cal.mask) != 0) {
+        // Free (gyroscope-only) headings: docs/body-calibration.md, "Free headings".
+        what += fmt::format(" ({} with a free heading, {} of them with the nominal heading)",
+                            std::popcount(cal.freeHeading & cal.mask),
+                            std::popcount(cal.nominalHeading & cal.freeHeading & cal.mask));
+    }
     records_->event(t,
                     events.calibrated ? cap::EventKind::Calibrated : cap::EventKind::HeadingReset,
                     -1, 0, what);

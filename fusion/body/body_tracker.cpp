@@ -42,7 +42,8 @@ BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> se
       period_(periodFromHz(options.rateHz)),
       solver_(skeleton, maskOf(sensors_), options.solver),
       held_(sensors_.size()),
-      online_(sensors_.size(), true) {
+      online_(sensors_.size(), true),
+      headingTurn_(sensors_.size(), 0.0) {
     sensorOfSegment_.fill(-1);
     nominal_.fill(Quatd::Identity());
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
@@ -79,6 +80,17 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         firstUpdate_ = t;
     }
     auto& h = held_[static_cast<std::size_t>(u.sensor)];
+    // A free heading's turn from the calibration (the averaging below takes the orientation as
+    // it came: a calibration finds the turn anew).
+    auto turned = [&u](double turn) {
+        return turn == 0 ? u.qEnuSensor
+                         : (Eigen::Quaternionf(Eigen::AngleAxisf(static_cast<float>(turn),
+                                                                 Eigen::Vector3f::UnitZ())) *
+                            u.qEnuSensor)
+                               .normalized();
+    };
+    const double turn = headingTurn_[static_cast<std::size_t>(u.sensor)];
+    Eigen::Quaternionf q = turned(turn);
     if (h.count > 0 && t > h.latestT) {
         h.previous = h.latest;
         h.previousT = h.latestT;
@@ -86,7 +98,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     } else if (h.count == 0) {
         h.count = 1;
     }
-    h.latest = u.qEnuSensor;
+    h.latest = q;
     h.latestT = t;
     h.rateRadS = u.rateRadS;
     if (!gridStarted_ && calibrated_) {
@@ -115,6 +127,9 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         if (!wasCalibrated) {
             return events;
         }
+        if (headingTurn_[static_cast<std::size_t>(u.sensor)] != turn) {
+            q = turned(headingTurn_[static_cast<std::size_t>(u.sensor)]);  // a new calibration's
+        }
     }
     if (!calibrated_) {
         return events;
@@ -123,7 +138,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         for (std::size_t k = 0; k < 2; ++k) {
             if (u.sensor == footSensor_[k]) {
                 FootInertial& f = footInertial_[k];
-                f.add(u.qEnuSensor.cast<double>(), u.specificForceMps2.cast<double>(),
+                f.add(q.cast<double>(), u.specificForceMps2.cast<double>(),
                       u.rateRadS.cast<double>(), toSeconds(h.latestT - h.previousT));
                 footHistory_[k].push(
                     FootSample{t, f.valid(), f.still(), f.velocityEnuMps(), f.rateEnuRadS()});
@@ -140,7 +155,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
             --pelvisCount_;
         }
         pelvisPending_[(pelvisHead_ + pelvisCount_) % kPelvisPending] =
-            PelvisForce{t, u.qEnuSensor.cast<double>() * u.specificForceMps2.cast<double>()};
+            PelvisForce{t, q.cast<double>() * u.specificForceMps2.cast<double>()};
         ++pelvisCount_;
     }
     if (headingResetAt_ && t >= *headingResetAt_) {
@@ -278,15 +293,11 @@ void BodyTracker::forget(std::size_t sensor) {
         calibrationInput_->free &= ~bit(sensors_[sensor].segment);
         calibrationInput_->lost |= bit(sensors_[sensor].segment);
     }
+    // Its turn was for the heading that is gone.
+    headingTurn_[sensor] = 0;
 }
 
-TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
-    TrackerEvents events;
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= sensors_.size() ||
-        !std::isfinite(angleRad)) {
-        return events;
-    }
-    const auto i = static_cast<std::size_t>(sensor);
+void BodyTracker::turnHeld(std::size_t i, double angleRad) {
     const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitZ()));  // about ENU up
     const Eigen::Quaternionf turnF = turn.cast<float>();
     HeldOrientation& h = held_[i];
@@ -301,13 +312,41 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
         pelvisForceSumEnu_ = turn * pelvisForceSumEnu_;
     }
     for (std::size_t k = 0; k < 2; ++k) {
-        if (footSensor_[k] == sensor) {
+        if (footSensor_[k] == static_cast<int>(i)) {
             // Its dead reckoning integrated in the old frame: start it again from the next still
             // instant, as after an outage.
             footInertial_[k].reset();
             footHistory_[k].clear();
         }
     }
+}
+
+void BodyTracker::applyHeadingTurns() {
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        const int seg = idx(sensors_[i].segment);
+        const double turn = has(calibration_.freeHeading & calibration_.mask, seg)
+                                ? calibration_.headingTurnRad[static_cast<std::size_t>(seg)]
+                                : 0.0;
+        if (turn != headingTurn_[i]) {
+            if (held_[i].count > 0) {
+                turnHeld(i, std::remainder(turn - headingTurn_[i], 2 * std::numbers::pi));
+            }
+            headingTurn_[i] = turn;
+        }
+    }
+}
+
+TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
+    TrackerEvents events;
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= sensors_.size() ||
+        !std::isfinite(angleRad)) {
+        return events;
+    }
+    const auto i = static_cast<std::size_t>(sensor);
+    const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitZ()));  // about ENU up
+    // The filter's frame turned: what is held (taken with the calibration's turn, if any) turns
+    // with it; the calibration's turn is replaced below.
+    turnHeld(i, angleRad);
     if (request_) {
         // A rotation on the left is linear in the quaternion's components: the turned sum is the
         // sum of the turned orientations, so the average goes on in the new frame.
@@ -340,6 +379,8 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
     cal->headingRad = std::remainder(cal->headingRad + resetTurn, 2 * std::numbers::pi);
     calibrationInput_ = in;
     calibration_ = *cal;
+    // This sensor's turn dropped, the free ones' anew (relative to the capture heading now).
+    applyHeadingTurns();
     solver_.setCalibration(calibration_);
     // The aiding's low-passed velocity is in the old world.
     rootVelocityValid_ = false;
@@ -355,6 +396,8 @@ Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& 
     // (a free heading is off by an angle of its own, an unchecked one by whatever its offset
     // makes it: neither is better than the other).
     copt.headingFrom = ~(in.free | in.unchecked | in.lost);
+    // A free heading's mounting: the one closest to the nominal about the vertical.
+    copt.freeHeading = in.free;
     if (in.method == CalibrationMethod::TPlusN) {
         return calibrateTwoPose(in.frames[0], in.frames[1], copt, tNs);
     }
@@ -507,6 +550,7 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
     in.headingRad = cal->headingRad;
     calibrationInput_ = in;
     calibration_ = *cal;
+    applyHeadingTurns();
     solver_.setCalibration(calibration_);
     solver_.resetRoot();
     rootVelocityValid_ = false;

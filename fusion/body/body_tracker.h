@@ -138,6 +138,11 @@ public:
     // that are magnetic now (and a heading reset done since kept). Call it before the sensor's
     // next update.
     TrackerEvents realignHeading(int sensor, double angleRad);
+    // A sensor whose heading is free when a calibration takes it gets the mounting closest to
+    // its nominal one (BodyCalibration::nominalHeading; T+N's arms: measured) and a turn about up
+    // (BodyCalibration::headingTurnRad) that its orientations are taken with from then on, until
+    // its heading is realigned (the turn dropped, the calibration re-expressed) or its filter
+    // restarts.
     // The segments whose sensors' headings were free when the calibration in use was taken and
     // have not been realigned since (0 for the nominal mountings).
     SegmentMask freeAtCalibration() const {
@@ -221,6 +226,12 @@ private:
     };
 
     void forget(std::size_t sensor);
+    // What is held of a sensor (its orientations, the pelvis' forces not yet taken) turned by
+    // angleRad about ENU up, its foot's dead reckoning restarted.
+    void turnHeld(std::size_t sensor, double angleRad);
+    // Each sensor's heading turn from the calibration in use (BodyCalibration::headingTurnRad
+    // for a free heading, none otherwise), what is held of it turned by the change.
+    void applyHeadingTurns();
     void average(const SensorUpdate& u);
     SensorFrame averagedFrame(const Window& w, SegmentMask only) const;
     void completeCalibration(Timestamp t, TrackerEvents& events);
@@ -243,6 +254,9 @@ private:
     std::array<Quatd, kSegmentCount> nominal_;
     std::vector<HeldOrientation> held_;
     std::vector<bool> online_;
+    // Per sensor: its orientations are taken turned by this about ENU up (a free heading's turn
+    // from the calibration in use; 0: as they come).
+    std::vector<double> headingTurn_;
     int pelvisSensor_ = -1;
     // The feet's sensors (-1 when none) and their dead reckoning.
     std::array<int, 2> footSensor_{-1, -1};

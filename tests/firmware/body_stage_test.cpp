@@ -403,7 +403,22 @@ TEST(BodyStage, ReExpressesAFreeHeadingsCalibrationAndAReprocessDoesTheSame) {
         EXPECT_NE(e.text.find("re-expressed"), std::string::npos) << e.text;
     }
     // A metadata record per calibration: the first and each re-expression.
-    EXPECT_EQ(live.metadataRecords.size(), steps.size() + 1);
+    ASSERT_EQ(live.metadataRecords.size(), steps.size() + 1);
+    // The first names each free heading's mounting as taken from the nominal heading (the
+    // T-pose: no measured one among them); each re-expression one fewer.
+    auto count = [](const std::string& text, const std::string& what) {
+        int n = 0;
+        for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) {
+            ++n;
+        }
+        return n;
+    };
+    for (std::size_t k = 0; k < live.metadataRecords.size(); ++k) {
+        const std::string& m = live.metadataRecords[k];
+        const int freeLeft = std::popcount(freeAtCalibration) - static_cast<int>(k);
+        EXPECT_EQ(count(m, "heading_free "), freeLeft) << m;
+        EXPECT_EQ(count(m, " nominal-heading"), freeLeft) << m;
+    }
 
     firmware::ReprocessOptions ro;
     ro.calibration.kind = firmware::CalibrationChoice::Kind::TPose;
@@ -418,6 +433,7 @@ TEST(BodyStage, ReExpressesAFreeHeadingsCalibrationAndAReprocessDoesTheSame) {
         EXPECT_EQ(stepsAgain[i].sensor, steps[i].sensor);
         EXPECT_EQ(stepsAgain[i].text, steps[i].text);
     }
+    EXPECT_EQ(again.metadataRecords, live.metadataRecords);
     ASSERT_EQ(again.poses.size(), live.poses.size());
     double worst = 0;
     for (std::size_t i = 0; i < live.poses.size(); ++i) {
