@@ -605,6 +605,15 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
     for (std::size_t c = 0; c < results.size(); ++c) {
         const EvaluateResult& r = results[c];
         const body::PoseScore& s = r.score;
+        // Per sensor: its mounting's error and mode (docs/body-calibration.md, "Free headings").
+        std::string mountings;
+        for (std::size_t i = 0; i < b.sensors.size() && i < r.mountingErrorDeg.size(); ++i) {
+            const bool nominal = i < r.nominalHeading.size() && r.nominalHeading[i];
+            mountings += fmt::format(
+                "{}\n        {{\"sensor\": {}, \"error_deg\": {:.6f}, \"mode\": \"{}\"}}",
+                i == 0 ? "" : ",", quoted(b.sensors[i].name), r.mountingErrorDeg[i],
+                nominal ? "nominal-heading" : "measured");
+        }
         out += fmt::format(
             "{}\n    {{\n      \"clip\": {},\n      \"calibration\": {},\n"
             "      \"samples\": {},\n      \"poses\": {},\n      \"scored_poses\": {},\n"
@@ -612,6 +621,7 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"mounting_error_mean_deg\": {:.6f},\n      \"mounting_error_max_deg\": "
             "{:.6f},\n"
             "      \"nominal_mounting_error_mean_deg\": {:.6f},\n"
+            "      \"mountings\": [{}\n      ],\n"
             "      \"mean_angle_deg\": {:.6f},\n      \"mean_position_m\": {:.6f},\n"
             "      \"walked_m\": {:.6f},\n      \"final_drift_m\": {:.6f},\n"
             "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n"
@@ -622,7 +632,7 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"root_translation_measured\": {},\n      \"joints\": [",
             c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
             r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
-            r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
+            r.nominalMountingErrorMeanDeg, mountings, s.meanAngleDeg, s.meanPositionM, s.walkedM,
             s.finalDriftM, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM, s.maxHeightErrorM,
             s.independentMeanAngleDeg, s.independentMeanPositionM, s.measuredJoints,
             s.measuredIndependentJoints, body::rootTranslationMeasured(s.measured));
