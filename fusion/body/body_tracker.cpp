@@ -396,14 +396,23 @@ Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& 
     // (a free heading is off by an angle of its own, an unchecked one by whatever its offset
     // makes it: neither is better than the other).
     copt.headingFrom = ~(in.free | in.unchecked | in.lost);
-    // A free heading's mounting: the one closest to the nominal about the vertical.
-    copt.freeHeading = in.free;
-    if (in.method == CalibrationMethod::TPlusN) {
-        return calibrateTwoPose(in.frames[0], in.frames[1], copt, tNs);
-    }
+    // A free heading's mounting: the one closest to the nominal about the vertical. A sensor
+    // lost since keeps that mounting (still the best known), but no turn: its orientations are
+    // in a new frame that nothing relates to the one averaged.
+    copt.freeHeading = in.free | in.lost;
     const auto pose =
         in.method == CalibrationMethod::TPose ? ReferencePoseKind::T : ReferencePoseKind::N;
-    return calibrateOnePose(pose, in.frames[0], copt, tNs);
+    Result<BodyCalibration> cal = in.method == CalibrationMethod::TPlusN
+                                      ? calibrateTwoPose(in.frames[0], in.frames[1], copt, tNs)
+                                      : calibrateOnePose(pose, in.frames[0], copt, tNs);
+    if (cal) {
+        for (int i = 0; i < kSegmentCount; ++i) {
+            if (has(in.lost, i)) {
+                cal->headingTurnRad[static_cast<std::size_t>(i)] = 0;
+            }
+        }
+    }
+    return cal;
 }
 
 void BodyTracker::setSensorOnline(int sensor, bool online) {

@@ -732,6 +732,57 @@ TEST(BodyTracker, RealigningSomeFreeHeadingsReExpressesATPlusNCalibration) {
     realignSomeFree(true);
 }
 
+// A free sensor whose filter restarts after the calibration (a new free frame, unrelated to the
+// one averaged): it keeps its nominal-heading mounting through a later re-expression, with no
+// turn, and is never re-expressed itself.
+TEST(BodyTracker, AFreeSensorRestartedKeepsItsNominalHeadingMountingWithoutATurn) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    const auto thigh = static_cast<std::size_t>(suit.sensor(S::LThigh));
+    const auto hand = static_cast<std::size_t>(suit.sensor(S::RHand));
+    h.offsetRad[thigh] = 100 * kDeg;
+    h.offsetRad[hand] = -70 * kDeg;
+    h.free[thigh] = true;
+    h.free[hand] = true;
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const auto seg = static_cast<std::size_t>(idx(S::LThigh));
+    Quatd mountingBefore;
+    for (int k = 0; k < 400; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(2s)) {
+            ASSERT_TRUE(tracker.calibrated());
+            EXPECT_NE(tracker.calibration().headingTurnRad[seg], 0.0);
+            mountingBefore = tracker.calibration().mounting[seg];
+            EXPECT_LT(mountingBefore.angularDistance(suit.trueMounting[seg]), kTolRad);
+            tracker.resetSensor(static_cast<int>(thigh));
+            h.offsetRad[thigh] = -20 * kDeg;  // its restarted filter's own free angle
+        }
+        if (t == at(3s)) {
+            EXPECT_FALSE(tracker.realignHeading(static_cast<int>(thigh), 5 * kDeg).reexpressed);
+            EXPECT_TRUE(
+                tracker.realignHeading(static_cast<int>(hand), h.offsetRad[hand]).reexpressed);
+            h.free[hand] = false;
+            h.offsetRad[thigh] -= 5 * kDeg;
+        }
+        h.feed(tracker, suit, t, tpose, 30 * kDeg, events);
+    }
+    const BodyCalibration& cal = tracker.calibration();
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_LT(cal.mounting[seg].angularDistance(mountingBefore), 1e-9);
+    EXPECT_TRUE(has(cal.freeHeading, idx(S::LThigh)));
+    EXPECT_TRUE(has(cal.nominalHeading, idx(S::LThigh)));
+    EXPECT_EQ(cal.headingTurnRad[seg], 0.0);
+    EXPECT_FALSE(has(cal.freeHeading, idx(S::RHand)));
+    EXPECT_LT(worstMountingError(cal, suit), kTolRad);
+}
+
 // A heading realigned while the calibration is still averaging: the sums turn with it, and the
 // calibration comes out as if the sensor had been magnetic throughout.
 TEST(BodyTracker, RealigningDuringTheAverageTurnsWhatWasAveraged) {
