@@ -1,6 +1,7 @@
 #include "firmware/evaluation.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <fstream>
 #include <map>
@@ -198,6 +199,7 @@ MountingErrors mountingErrors(
             180.0 / hal::kPi;
         m.meanDeg += e;
         m.maxDeg = std::max(m.maxDeg, e);
+        m.perSensorDeg.push_back(e);
         m.nominalMeanDeg += sc.mounting.angularDistance(truth) * 180.0 / hal::kPi;
     }
     const double n = static_cast<double>(b.sensors.size());
@@ -369,11 +371,20 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         r.gyroClipEvents.push_back(fusion.clipEvents(static_cast<int>(i)));
         r.magModes.push_back(fusion.magMode(static_cast<int>(i)));
         r.magEstimates.push_back(fusion.magEstimate(static_cast<int>(i)));
+        const FusionStage::HeadingStep& step = fusion.headingStep(static_cast<int>(i));
+        r.headingSteps.push_back(
+            {step.count, toSeconds(step.t - start), step.angleRad * 180.0 / hal::kPi});
     }
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
     r.mountingErrorMaxDeg = m.maxDeg;
+    r.mountingErrorDeg = m.perSensorDeg;
     r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
+    for (const auto& sc : b.sensors) {
+        const body::BodyCalibration& cal = bodyStage.calibration();
+        r.nominalHeading.push_back(
+            body::has(cal.nominalHeading & cal.freeHeading & cal.mask, body::idx(sc.segment)));
+    }
 
     if (o.reprocessSmooth) {
         // The capture's samples again, as `caphub reprocess --smooth` would take them from its
@@ -427,6 +438,44 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         "deg max (the board's nominal ones: {:.2f} deg mean)\n\n",
         r.calibration, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
         r.nominalMountingErrorMeanDeg);
+    {
+        // The mountings far off (a heading that was free or unchecked at the calibration).
+        std::string far;
+        for (std::size_t i = 0; i < r.mountingErrorDeg.size() && i < b.sensors.size(); ++i) {
+            if (r.mountingErrorDeg[i] > 10.0) {
+                far += fmt::format("{}{} {:.1f}", far.empty() ? "" : ", ", b.sensors[i].name,
+                                   r.mountingErrorDeg[i]);
+            }
+        }
+        if (!far.empty()) {
+            out.insert(out.size() - 1, fmt::format("mountings more than 10 deg off: {}\n", far));
+        }
+        // By mode, when any came from the nominal heading (docs/body-calibration.md, "Free
+        // headings"): the rest were measured.
+        std::array<std::vector<std::string>, 2> names;
+        std::array<double, 2> sum{};
+        std::array<double, 2> worst{};
+        for (std::size_t i = 0;
+             i < r.nominalHeading.size() && i < r.mountingErrorDeg.size() && i < b.sensors.size();
+             ++i) {
+            const std::size_t k = r.nominalHeading[i] ? 0 : 1;
+            names[k].push_back(b.sensors[i].name);
+            sum[k] += r.mountingErrorDeg[i];
+            worst[k] = std::max(worst[k], r.mountingErrorDeg[i]);
+        }
+        if (!names[0].empty()) {
+            auto part = [&](std::size_t k, std::string_view mode) {
+                return names[k].empty()
+                           ? fmt::format("0 {}", mode)
+                           : fmt::format("{} {} {:.2f} deg mean, {:.2f} deg max", names[k].size(),
+                                         mode, sum[k] / static_cast<double>(names[k].size()),
+                                         worst[k]);
+            };
+            out.insert(out.size() - 1,
+                       fmt::format("mountings by mode: {} ({}); {}\n", part(0, "nominal-heading"),
+                                   fmt::join(names[0], " "), part(1, "measured")));
+        }
+    }
     std::string clipped;
     for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {
         if (r.gyroClipEvents[i] > 0) {
@@ -450,6 +499,54 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         }
         if (!modes.empty()) {
             out.insert(out.size() - 1, fmt::format("magnetometers at the end: {}\n", modes));
+        }
+        // When each free heading was measured and stepped to magnetic north (and which never were
+        // though free at the end).
+        std::string steps;
+        for (std::size_t i = 0; i < r.headingSteps.size() && i < b.sensors.size(); ++i) {
+            const auto& st = r.headingSteps[i];
+            if (st.count > 0) {
+                steps += fmt::format("{}{} {:.1f} s ({:+.1f} deg{})", steps.empty() ? "" : ", ",
+                                     b.sensors[i].name, st.atS, st.angleDeg,
+                                     st.count > 1 ? fmt::format(", {} steps", st.count) : "");
+            }
+        }
+        // Why a heading is still free at the end: the estimate's figures (docs/fusion.md).
+        std::string freeWhy;
+        for (std::size_t i = 0; i < r.magModes.size() && i < b.sensors.size(); ++i) {
+            if (r.magModes[i] != MagMode::Estimating || i >= r.magEstimates.size()) {
+                continue;
+            }
+            const fusion::HardIronEstimate& e = r.magEstimates[i];
+            freeWhy += fmt::format(
+                "{}{} ({})", freeWhy.empty() ? "" : ", ", b.sensors[i].name,
+                !e.valid ? std::string("too few readings")
+                         : fmt::format("{}spread {:.3f}, residual {:.1f} %, field {:.1f} uT",
+                                       e.good ? "good, heading error not yet steady: " : "",
+                                       e.spread, e.residualPct, e.fieldNormUt));
+        }
+        if (!freeWhy.empty()) {
+            out.insert(out.size() - 1,
+                       fmt::format("gyroscope-only at the end, the estimate: {}\n", freeWhy));
+        }
+        if (!steps.empty()) {
+            // The stepped sensors' mountings: what the re-expression gave them.
+            double sum = 0;
+            double worst = 0;
+            int n = 0;
+            for (std::size_t i = 0; i < r.headingSteps.size() && i < r.mountingErrorDeg.size();
+                 ++i) {
+                if (r.headingSteps[i].count > 0) {
+                    sum += r.mountingErrorDeg[i];
+                    worst = std::max(worst, r.mountingErrorDeg[i]);
+                    ++n;
+                }
+            }
+            out.insert(out.size() - 1,
+                       fmt::format("gyroscope-only headings stepped to magnetic (s from the start, "
+                                   "lead-in included): {}; their {} mountings {:.2f} deg mean, "
+                                   "{:.2f} deg max off the true ones\n",
+                                   steps, n, n > 0 ? sum / n : 0.0, worst));
         }
     }
     if (!clipped.empty()) {
@@ -508,6 +605,15 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
     for (std::size_t c = 0; c < results.size(); ++c) {
         const EvaluateResult& r = results[c];
         const body::PoseScore& s = r.score;
+        // Per sensor: its mounting's error and mode (docs/body-calibration.md, "Free headings").
+        std::string mountings;
+        for (std::size_t i = 0; i < b.sensors.size() && i < r.mountingErrorDeg.size(); ++i) {
+            const bool nominal = i < r.nominalHeading.size() && r.nominalHeading[i];
+            mountings += fmt::format(
+                "{}\n        {{\"sensor\": {}, \"error_deg\": {:.6f}, \"mode\": \"{}\"}}",
+                i == 0 ? "" : ",", quoted(b.sensors[i].name), r.mountingErrorDeg[i],
+                nominal ? "nominal-heading" : "measured");
+        }
         out += fmt::format(
             "{}\n    {{\n      \"clip\": {},\n      \"calibration\": {},\n"
             "      \"samples\": {},\n      \"poses\": {},\n      \"scored_poses\": {},\n"
@@ -515,6 +621,7 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"mounting_error_mean_deg\": {:.6f},\n      \"mounting_error_max_deg\": "
             "{:.6f},\n"
             "      \"nominal_mounting_error_mean_deg\": {:.6f},\n"
+            "      \"mountings\": [{}\n      ],\n"
             "      \"mean_angle_deg\": {:.6f},\n      \"mean_position_m\": {:.6f},\n"
             "      \"walked_m\": {:.6f},\n      \"final_drift_m\": {:.6f},\n"
             "      \"max_drift_m\": {:.6f},\n      \"stance_changes\": {},\n"
@@ -525,7 +632,7 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
             "      \"root_translation_measured\": {},\n      \"joints\": [",
             c == 0 ? "" : ",", quoted(r.clip), quoted(r.calibration), r.samples, r.poses, s.frames,
             r.leadInS, r.clipS, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
-            r.nominalMountingErrorMeanDeg, s.meanAngleDeg, s.meanPositionM, s.walkedM,
+            r.nominalMountingErrorMeanDeg, mountings, s.meanAngleDeg, s.meanPositionM, s.walkedM,
             s.finalDriftM, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM, s.maxHeightErrorM,
             s.independentMeanAngleDeg, s.independentMeanPositionM, s.measuredJoints,
             s.measuredIndependentJoints, body::rootTranslationMeasured(s.measured));

@@ -27,6 +27,7 @@ struct MountingErrors {
     double meanDeg = 0;
     double maxDeg = 0;
     double nominalMeanDeg = 0;
+    std::vector<double> perSensorDeg;  // in the board's order
 };
 MountingErrors mountingErrors(
     const body::BodyCalibration& calibration, const board::Board& b,
@@ -71,13 +72,26 @@ struct EvaluateResult {
     // nominal mountings against the same.
     double mountingErrorMeanDeg = 0;
     double mountingErrorMaxDeg = 0;
+    std::vector<double> mountingErrorDeg;  // per board sensor
     double nominalMountingErrorMeanDeg = 0;
+    // Per board sensor at the end: its mounting's mode. true: nominal-heading (its heading was
+    // free at the calibration and has not been measured since: the rotation about the vertical
+    // is the nominal mounting's, the rest from gravity); false: measured.
+    std::vector<bool> nominalHeading;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
     // Per board sensor at the end of the run: its heading source and its online hard-iron
     // estimate (docs/fusion.md, "No magnetometer calibration").
     std::vector<MagMode> magModes;
     std::vector<fusion::HardIronEstimate> magEstimates;
+    // Per sensor, its free (gyroscope-only) heading's steps to magnetic north: how many, and the
+    // latest's time (s from the start of the capture, the lead-in included) and angle (deg).
+    struct HeadingStepFigure {
+        std::uint32_t count = 0;
+        double atS = 0;
+        double angleDeg = 0;
+    };
+    std::vector<HeadingStepFigure> headingSteps;
     double wallS = 0;
     // With reprocessSmooth: the smoothed poses' score, and the reprocess's computing time.
     std::optional<body::PoseScore> smoothed;

@@ -49,7 +49,12 @@ BodyStage::BodyStage(const board::Board& board, FusionStage& fusion, RecordSink*
       clock_(clock),
       options_(options),
       tracker_(options.dimensions ? body::Skeleton(*options.dimensions) : skeletonFor(board),
-               trackedSensors(board), trackerOptions(options)) {}
+               trackedSensors(board), trackerOptions(options)),
+      headingSteps_(board.sensors.size(), 0) {
+    for (const auto& sc : board.sensors) {
+        sensorNames_.push_back(sc.name);
+    }
+}
 
 void BodyStage::onSample(const SensorSample& s) {
     const Timestamp t = s.sample.t;
@@ -57,6 +62,19 @@ void BodyStage::onSample(const SensorSample& s) {
         started_ = true;
         if (options_.calibrate) {
             tracker_.startCalibration(*options_.calibrate, t + options_.settle);
+        }
+    }
+    if (s.sensor >= 0 && static_cast<std::size_t>(s.sensor) < headingSteps_.size()) {
+        // The sensor's filter turned its free (gyroscope-only) heading to magnetic north: what
+        // the tracker holds of it, and a calibration that took it free, turn with it.
+        const FusionStage::HeadingStep& step = fusion_.headingStep(s.sensor);
+        auto& seen = headingSteps_[static_cast<std::size_t>(s.sensor)];
+        if (step.count != seen) {
+            seen = step.count;
+            const body::TrackerEvents events = tracker_.realignHeading(s.sensor, step.angleRad);
+            if (events.reexpressed) {
+                recordReexpression(t, s.sensor, step.angleRad);
+            }
         }
     }
     const FusionStage::Latest* now = fusion_.latest(s.sensor);
@@ -71,6 +89,8 @@ void BodyStage::onSample(const SensorSample& s) {
         u.qEnuSensor = now->orientation;
         u.specificForceMps2 = now->specificForceMps2;
         u.rateRadS = now->rateRadS;
+        u.headingFree = fusion_.headingFree(s.sensor);
+        u.headingUnchecked = fusion_.magMode(s.sensor) == MagMode::Raw;
         const body::TrackerEvents events = tracker_.update(u);
         if (events.calibrated || events.calibrationFailed || events.headingReset ||
             events.headingResetFailed) {
@@ -147,6 +167,21 @@ void BodyStage::onEvent(const RuntimeEvent& e) {
     }
 }
 
+void BodyStage::recordReexpression(Timestamp t, int sensor, double angleRad) {
+    const body::BodyCalibration& cal = tracker_.calibration();
+    const std::string what = fmt::format(
+        "body calibration re-expressed: {}'s heading was the gyroscope's at the calibration, now "
+        "magnetic (turned {:.1f} deg); capture heading {:.1f} deg",
+        sensorNames_[static_cast<std::size_t>(sensor)], angleRad * 180 / std::numbers::pi,
+        cal.headingRad * 180 / std::numbers::pi);
+    log::logger(log::Category::Body).debug("{}", what);
+    if (records_ == nullptr) {
+        return;
+    }
+    records_->event(t, cap::EventKind::Calibrated, sensor, 0, what);
+    records_->metadata(t, "[body_calibration]\ntext = " + tomlString(body::toText(cal)) + "\n");
+}
+
 void BodyStage::record(Timestamp t, const body::TrackerEvents& events) {
     if (events.calibrationFailed) {
         log::logger(log::Category::Body).error("body calibration failed: {}", events.message);
@@ -160,11 +195,17 @@ void BodyStage::record(Timestamp t, const body::TrackerEvents& events) {
         return;
     }
     const body::BodyCalibration& cal = tracker_.calibration();
-    const std::string what = events.calibrated
-                                 ? fmt::format("body calibration: {} pose, {} segments",
-                                               body::toString(cal.method), std::popcount(cal.mask))
-                                 : fmt::format("heading reset: heading {:.1f} deg",
-                                               cal.headingRad * 180 / std::numbers::pi);
+    std::string what = events.calibrated
+                           ? fmt::format("body calibration: {} pose, {} segments",
+                                         body::toString(cal.method), std::popcount(cal.mask))
+                           : fmt::format("heading reset: heading {:.1f} deg",
+                                         cal.headingRad * 180 / std::numbers::pi);
+    if (events.calibrated && (cal.freeHeading & cal.mask) != 0) {
+        // Free (gyroscope-only) headings: docs/body-calibration.md, "Free headings".
+        what += fmt::format(" ({} with a free heading, {} of them with the nominal heading)",
+                            std::popcount(cal.freeHeading & cal.mask),
+                            std::popcount(cal.nominalHeading & cal.freeHeading & cal.mask));
+    }
     records_->event(t,
                     events.calibrated ? cap::EventKind::Calibrated : cap::EventKind::HeadingReset,
                     -1, 0, what);

@@ -7,6 +7,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
@@ -76,6 +77,9 @@ public:
 
 private:
     void record(Timestamp t, const body::TrackerEvents& events);
+    // A calibration re-expressed for a sensor's measured heading: an event and the new
+    // calibration's metadata.
+    void recordReexpression(Timestamp t, int sensor, double angleRad);
     void publish(const body::TrackedPose& p, Timestamp newest, std::uint32_t notMeasured);
 
     FusionStage& fusion_;
@@ -90,6 +94,8 @@ private:
     static constexpr std::uint32_t kAllJoints = (1u << body::kSegmentCount) - 1;
     std::array<Eigen::Quaternionf, body::kSegmentCount> joints_{};
     std::array<bool, body::kSegmentCount> jointSeen_{};  // measured at least once
+    std::vector<std::uint32_t> headingSteps_;  // per sensor, FusionStage::HeadingStep::count seen
+    std::vector<std::string> sensorNames_;
 };
 
 }  // namespace caphub::firmware

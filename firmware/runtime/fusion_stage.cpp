@@ -24,6 +24,7 @@ FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibra
       resetPending_(board.sensors.size(), false),
       resets_(board.sensors.size(), 0),
       calibrations_(std::move(calibrations)),
+      headingSteps_(board.sensors.size()),
       records_(records) {
     calibrations_.resize(board.sensors.size());
     onlineMag_.resize(board.sensors.size());
@@ -35,12 +36,9 @@ FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibra
         p.magRateHz = s.magOdrHz > 0 ? s.magOdrHz : s.achievedOdrHz;
         filters_.push_back(std::make_unique<Filter>(p));
         if (!calibrations_[i] || !calibrations_[i]->hasMag) {
-            OnlineMag m{fusion::OnlineHardIron(p.magRateHz),
-                        {},
-                        MagMode::Estimating,
-                        false,
-                        0,
-                        static_cast<std::uint32_t>(std::max(1.0, std::round(p.magRateHz)))};
+            OnlineMag m(fusion::OnlineHardIron(p.magRateHz));
+            m.solveEvery = static_cast<std::uint32_t>(std::max(1.0, std::round(p.magRateHz)));
+            m.alignEvery = static_cast<std::uint32_t>(std::max(1.0, std::round(2.0 * p.magRateHz)));
             onlineMag_[i] = m;
         }
     }
@@ -68,7 +66,7 @@ void FusionStage::onSample(const SensorSample& s) {
                 bodyAccEnu_);
     if ((in.flags & hal::ImuSample::kMagFresh) != 0 &&
         (in.flags & hal::ImuSample::kMagOverflow) == 0) {
-        magUpdate(static_cast<std::size_t>(s.sensor), f, c.magUt);
+        magUpdate(static_cast<std::size_t>(s.sensor), f, c.magUt, in.t);
     }
     if (f.rejections().samples() != rejectedBefore) {
         // A glitched read (not finite, beyond the chip's range): the filter dropped it; the body
@@ -114,6 +112,12 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
             state.bias = f.bias();
             state.clipEvents = f.clipEvents();
             f.setState(state);
+            if (onlineMag_[i]) {
+                // A heading error averaged against the old orientation says nothing of the new.
+                onlineMag_[i]->alignCount = 0;
+                onlineMag_[i]->sumSin = 0;
+                onlineMag_[i]->sumCos = 0;
+            }
             resetPending_[i] = true;
             ++resets_[i];
             return;
@@ -123,7 +127,8 @@ void FusionStage::onEvent(const RuntimeEvent& e) {
     }
 }
 
-void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt) {
+void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt,
+                            Timestamp t) {
     const auto feed = [&f](const Eigen::Vector3d& m) {
         f.updateMag(
             {static_cast<float>(m.x()), static_cast<float>(m.y()), static_cast<float>(m.z())});
@@ -159,16 +164,25 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         const bool smallOffset = o.estimate.offsetUt.norm() < 0.1 * o.estimate.fieldNormUt;
         if (o.estimate.good && !(o.mode == MagMode::Raw && smallOffset)) {
             if (o.mode == MagMode::Estimating) {
-                // From a gyroscope-only heading to a magnetic one: at the filter's normal heading
-                // gain (a slow blend), not the exact first alignment.
-                auto st = f.state();
-                st.headingInit = true;
-                f.setState(st);
+                // From a gyroscope-only heading to a magnetic one: the heading error is measured
+                // first (alignHeading), then corrected in one step.
+                if (!o.aligning) {
+                    o.aligning = true;
+                    o.sumSin = 0;
+                    o.sumCos = 0;
+                    o.alignCount = 0;
+                }
+            } else {
+                o.mode = MagMode::Online;
             }
-            o.mode = MagMode::Online;
         } else if (o.mode == MagMode::Online && o.estimate.valid && !o.estimate.good) {
             o.mode = MagMode::Estimating;
+        } else if (o.mode == MagMode::Estimating && !o.estimate.good) {
+            o.aligning = false;
         }
+    }
+    if (o.mode == MagMode::Estimating && o.aligning) {
+        alignHeading(sensor, o, f, magUt, t);
     }
     switch (o.mode) {
         case MagMode::Raw:
@@ -181,6 +195,82 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         case MagMode::Calibrated:
             return;
     }
+}
+
+void FusionStage::alignHeading(std::size_t sensor, OnlineMag& o, Filter& f,
+                               const Eigen::Vector3d& magUt, Timestamp t) {
+    if (!f.state().inclinationInit) {
+        return;
+    }
+    const Eigen::Vector3d m = magUt - o.estimate.offsetUt;
+    const double b = o.estimate.fieldNormUt;
+    const auto restart = [&o] {
+        o.sumSin = 0;
+        o.sumCos = 0;
+        o.alignCount = 0;
+    };
+    if (std::abs(m.norm() - b) > 0.1 * b) {
+        restart();  // disturbed (or the estimate is not yet right for this direction)
+        return;
+    }
+    // The field in the earth frame through the filter's gyroscope-only orientation: its
+    // horizontal part points where the filter thinks north is; the angle that turns it onto
+    // +y (north) about up is the heading error, the filter's own rule (updateMag).
+    const auto q = f.quat();
+    const Eigen::Vector3d mE = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized() * m;
+    const double h = std::hypot(mE.x(), mE.y());
+    if (h < 0.2 * m.norm()) {
+        return;  // the field near vertical here: no heading in it
+    }
+    o.sumSin += mE.x() / h;
+    o.sumCos += mE.y() / h;
+    if (++o.alignCount < o.alignEvery) {
+        return;
+    }
+    // The mean resultant length: 1 when every reading gave the same error. Below 0.97 (a circular
+    // spread of about 14 deg) the errors disagree - a disturbance, an estimate not yet right for
+    // every direction - and the average starts again.
+    const double r = std::hypot(o.sumSin, o.sumCos) / static_cast<double>(o.alignCount);
+    if (r < 0.97) {
+        restart();
+        return;
+    }
+    const double angle = std::atan2(o.sumSin, o.sumCos);
+    auto st = f.state();
+    const fusion::Quat<float> turn{static_cast<float>(std::cos(angle / 2)), 0.0F, 0.0F,
+                                   static_cast<float>(std::sin(angle / 2))};
+    st.qCorr = fusion::renormalized(fusion::quatMul(turn, st.qCorr));
+    // Magnetic from here on at the normal heading gain: the step was the alignment.
+    st.headingInit = true;
+    f.setState(st);
+    o.mode = MagMode::Online;
+    o.aligning = false;
+    if (!override_) {
+        HeadingStep& step = headingSteps_[sensor];
+        ++step.count;
+        step.angleRad = angle;
+        step.t = t;
+    }
+}
+
+bool FusionStage::headingFree(int sensor) const {
+    return !override_ && magMode(sensor) == MagMode::Estimating;
+}
+
+const FusionStage::HeadingStep& FusionStage::headingStep(int sensor) const {
+    static const HeadingStep kNone{};
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= headingSteps_.size()) {
+        return kNone;
+    }
+    return headingSteps_[static_cast<std::size_t>(sensor)];
+}
+
+std::uint32_t FusionStage::alignReadings(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+        return 0;
+    }
+    return onlineMag_[static_cast<std::size_t>(sensor)]->alignEvery;
 }
 
 const char* key(MagMode m) {

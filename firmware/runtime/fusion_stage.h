@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "board/board.h"
@@ -88,17 +89,46 @@ public:
     std::optional<fusion::OnlineHardIronState> magEstimatorState(int sensor) const;
     bool setMagEstimatorState(int sensor, const fusion::OnlineHardIronState& state);
 
+    // A sensor's heading is free: the gyroscope's alone (mode Estimating), steady but off north
+    // by an angle of its own. False while orientations are overridden (they are not the
+    // filter's).
+    bool headingFree(int sensor) const;
+    // Each time a free heading became magnetic (the online estimate turned good and the heading
+    // error, averaged over alignReadings() undisturbed readings, was measured), the filter's
+    // heading was turned by that error in one step: q_new = Rz(angleRad) q_old (ENU, about up).
+    // The stages after this one take the count's change as their cue (BodyStage re-expresses
+    // the body calibration). Not counted while orientations are overridden.
+    struct HeadingStep {
+        std::uint32_t count = 0;  // steps so far
+        double angleRad = 0;      // the latest step
+        Timestamp t{};            // the sample it was taken at
+    };
+    const HeadingStep& headingStep(int sensor) const;
+    // Readings averaged for a step (about 2 s of the magnetometer's).
+    std::uint32_t alignReadings(int sensor) const;
+
 private:
     struct OnlineMag {
+        explicit OnlineMag(fusion::OnlineHardIron e) : estimator(std::move(e)) {}
         fusion::OnlineHardIron estimator;
         fusion::HardIronEstimate estimate;
         MagMode mode = MagMode::Estimating;
         bool decided = false;          // the first reading chose Raw or Estimating
         std::uint32_t sinceSolve = 0;  // readings since the last estimate()
         std::uint32_t solveEvery = 1;  // readings per estimate() (about 1 s)
+        // Estimating with a good estimate: the heading error being averaged before the step.
+        bool aligning = false;
+        double sumSin = 0;  // sum of the heading errors' unit vectors
+        double sumCos = 0;
+        std::uint32_t alignCount = 0;
+        std::uint32_t alignEvery = 1;  // readings averaged (about 2 s)
     };
     // Feeds a calibrated (or raw) field reading to the sensor's filter as its mode says.
-    void magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt);
+    void magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt, Timestamp t);
+    // While aligning: one reading (less the offset) into the heading error's average; at its
+    // end the step and the switch to Online.
+    void alignHeading(std::size_t sensor, OnlineMag& o, Filter& f, const Eigen::Vector3d& magUt,
+                      Timestamp t);
 
     std::vector<std::unique_ptr<Filter>> filters_;
     std::vector<Latest> latest_;
@@ -107,6 +137,7 @@ private:
     std::vector<std::uint32_t> resets_;
     Calibrations calibrations_;
     std::vector<std::optional<OnlineMag>> onlineMag_;  // sensors without a magnetometer calibration
+    std::vector<HeadingStep> headingSteps_;
     fusion::Vec3<float> bodyAccEnu_{};
     RecordSink* records_;
     OrientationOverride override_;

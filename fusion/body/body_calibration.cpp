@@ -16,6 +16,11 @@ Quatd yaw(double rad) {
     return Quatd(Eigen::AngleAxisd(rad, Vec3d::UnitY()));
 }
 
+// A turn about ENU up (+z).
+Quatd yawEnu(double rad) {
+    return Quatd(Eigen::AngleAxisd(rad, Vec3d::UnitZ()));
+}
+
 bool isArm(Segment s) {
     switch (s) {
         case S::LUpperarm:
@@ -55,10 +60,11 @@ Result<void> checkFrame(const SensorFrame& f, std::string_view what) {
 // estimated through the nominal mountings.
 double estimateHeading(ReferencePoseKind pose, const SensorFrame& f, const CalibrationOptions& o) {
     const Quatd qWorldEnu = enuFromSkeletonWorld().conjugate();
+    const SegmentMask from = (f.mask & o.headingFrom) != 0 ? f.mask & o.headingFrom : f.mask;
     double s = 0;
     double c = 0;
     for (int i = 0; i < kSegmentCount; ++i) {
-        if (!has(f.mask, i)) {
+        if (!has(from, i)) {
             continue;
         }
         const auto u = static_cast<std::size_t>(i);
@@ -157,11 +163,34 @@ Result<BodyCalibration> calibrateOnePose(ReferencePoseKind pose, const SensorFra
             continue;
         }
         const auto u = static_cast<std::size_t>(i);
-        cal.mounting[u] = (referenceOrientation(pose, static_cast<Segment>(i)).conjugate() *
-                           qWorldEnu * frame.qEnuSensor[u])
-                              .normalized();
+        const Quatd left =
+            referenceOrientation(pose, static_cast<Segment>(i)).conjugate() * qWorldEnu;
+        if (has(options.freeHeading, i)) {
+            // The sensor's heading is unknown, its mounting nearly known: the turn about up that
+            // brings the mounting closest to the nominal one.
+            const double turn =
+                closestHeadingTurn(left, frame.qEnuSensor[u], options.nominalMounting[u]);
+            cal.mounting[u] = (left * yawEnu(turn) * frame.qEnuSensor[u]).normalized();
+            cal.freeHeading |= SegmentMask{1} << i;
+            cal.nominalHeading |= SegmentMask{1} << i;
+            cal.headingTurnRad[u] = turn;
+            continue;
+        }
+        cal.mounting[u] = (left * frame.qEnuSensor[u]).normalized();
     }
     return cal;
+}
+
+double closestHeadingTurn(const Quatd& left, const Quatd& qEnuSensor, const Quatd& target) {
+    // With h = turn / 2, Rz(turn) = cos h + sin h k (k the pure quaternion of ENU +z), and the
+    // scalar part of target^-1 * left * Rz(turn) * q is a cos h + b sin h: its magnitude (the
+    // cosine of half the angle between the rotations) is largest, sqrt(a^2 + b^2), at
+    // h = atan2(b, a).
+    const Quatd c = target.conjugate() * left;
+    const Quatd k(0, 0, 0, 1);
+    const double a = (c * qEnuSensor).w();
+    const double b = (c * k * qEnuSensor).w();
+    return std::remainder(2 * std::atan2(b, a), 2 * std::numbers::pi);
 }
 
 Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorFrame& nPose,
@@ -208,6 +237,13 @@ Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorF
                                      board::segmentName(s))};
         }
         cal.mounting[u] = triad(upN, upT, segUpN, segUpT);
+        if (has(options.freeHeading, i)) {
+            // Measured whole from the two gravity directions: the free heading's turn is the one
+            // that brings the T-pose's orientation onto it, not a nominal heading.
+            cal.nominalHeading &= ~(SegmentMask{1} << i);
+            cal.headingTurnRad[u] = closestHeadingTurn(cal.qEnuWorld().conjugate(),
+                                                       tPose.qEnuSensor[u], cal.mounting[u]);
+        }
     }
     return cal;
 }
@@ -232,6 +268,16 @@ std::string toText(const BodyCalibration& cal) {
         out += fmt::format("mounting {} {:.17g} {:.17g} {:.17g} {:.17g}\n",
                            board::segmentName(static_cast<Segment>(i)), q.w(), q.x(), q.y(), q.z());
     }
+    // Only when a heading was free: a calibration without one reads as it always did.
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (!has(cal.freeHeading & cal.mask, i)) {
+            continue;
+        }
+        out +=
+            fmt::format("heading_free {} {:.17g} {}\n", board::segmentName(static_cast<Segment>(i)),
+                        cal.headingTurnRad[static_cast<std::size_t>(i)],
+                        has(cal.nominalHeading, i) ? "nominal-heading" : "measured");
+    }
     return out;
 }
 
@@ -239,6 +285,7 @@ Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_
     BodyCalibration cal;
     int lineNo = 0;
     bool haveMethod = false;
+    std::array<int, kSegmentCount> freeLine{};  // where each heading_free line was
     auto fail = [&](std::string_view what) {
         return Error{EINVAL, fmt::format("{}:{}: {}", sourceName, lineNo, what)};
     };
@@ -322,15 +369,51 @@ Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_
             }
             cal.mounting[static_cast<std::size_t>(idx(*seg))] = qq;
             cal.mask |= bit(*seg);
+        } else if (tok[0] == "heading_free") {
+            if (n != 4) {
+                return fail(
+                    "heading_free: expected '<segment> <turn_rad> nominal-heading|measured'");
+            }
+            const auto seg = board::findSegment(tok[1]);
+            if (!seg) {
+                return fail(
+                    fmt::format("heading_free: unknown segment '{}': expected an H-Anim "
+                                "segment name such as l_upperarm",
+                                tok[1]));
+            }
+            double turn = 0;
+            if (!number(tok[2], turn)) {
+                return fail("heading_free: expected a number of radians after the segment");
+            }
+            if (tok[3] != "nominal-heading" && tok[3] != "measured") {
+                return fail("heading_free: expected nominal-heading or measured last");
+            }
+            const auto u = static_cast<std::size_t>(idx(*seg));
+            cal.headingTurnRad[u] = turn;
+            cal.freeHeading |= bit(*seg);
+            if (tok[3] == "nominal-heading") {
+                cal.nominalHeading |= bit(*seg);
+            } else {
+                cal.nominalHeading &= ~bit(*seg);
+            }
+            freeLine[u] = lineNo;
         } else {
             return fail(
-                fmt::format("unknown key '{}': expected method, time_ns, heading_rad or "
-                            "mounting",
+                fmt::format("unknown key '{}': expected method, time_ns, heading_rad, "
+                            "mounting or heading_free",
                             tok[0]));
         }
     }
     if (!haveMethod) {
         return Error{EINVAL, fmt::format("{}: no 'method' line: expected one", sourceName)};
+    }
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (has(cal.freeHeading, i) && !has(cal.mask, i)) {
+            return Error{EINVAL, fmt::format("{}:{}: heading_free {}: expected a mounting line "
+                                             "for the segment too",
+                                             sourceName, freeLine[static_cast<std::size_t>(i)],
+                                             board::segmentName(static_cast<Segment>(i)))};
+        }
     }
     return cal;
 }

@@ -42,6 +42,16 @@ struct BodyCalibration {
     // The capture world: the skeleton world frame turned about up by headingRad, so that the
     // subject faced +Z at calibration. q_ENU_world = R_ENU_world * Ry(headingRad).
     double headingRad = 0;
+    // The segments whose sensors' headings were free at the calibration (the gyroscope's alone,
+    // off north by an angle of each sensor's own): each such sensor's orientations are taken
+    // turned by headingTurnRad about up (ENU +z, on the left: Rz(turn) q_ENU_sensor), so that
+    // its segment moves in the capture world with the others. Of these, nominalHeading: the
+    // mounting's rotation about the vertical is the nominal mounting's (the turn chosen to make
+    // it closest to it), the other two degrees of freedom from gravity; the others (T+N's arms)
+    // are measured, the turn fitted to them. docs/body-calibration.md, "Free headings".
+    SegmentMask freeHeading = 0;
+    SegmentMask nominalHeading = 0;
+    std::array<double, kSegmentCount> headingTurnRad{};
     BodyCalibration() { mounting.fill(Quatd::Identity()); }
     Quatd qEnuWorld() const;
 };
@@ -60,6 +70,13 @@ struct CalibrationOptions {
     // estimated from the sensors through their nominal mountings (the circular mean).
     std::optional<double> headingRad;
     std::array<Quatd, kSegmentCount> nominalMounting;  // from the board file
+    // The segments whose sensors the heading is estimated from: those whose headings are
+    // magnetic (a sensor whose heading is still the gyroscope's alone is off north by an angle
+    // of its own). None of the frame's among them: all of the frame's.
+    SegmentMask headingFrom = ~SegmentMask{0};
+    // The segments whose sensors' headings are free (BodyCalibration::freeHeading): their
+    // mountings take the heading about the vertical that is closest to the nominal mounting.
+    SegmentMask freeHeading = 0;
     CalibrationOptions() { nominalMounting.fill(Quatd::Identity()); }
 };
 
@@ -75,6 +92,12 @@ Result<BodyCalibration> calibrateOnePose(ReferencePoseKind pose, const SensorFra
 // same sensors.
 Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorFrame& nPose,
                                          const CalibrationOptions& options, std::int64_t tNs = 0);
+
+// The turn about up (rad, ENU +z, on the left of qEnuSensor) that makes
+// left * Rz(turn) * qEnuSensor closest to target (the least angle between the two rotations):
+// a 1-D problem with a closed form. left is what turns ENU into the mounting's frame
+// (q_world_segment(pose)^-1 q_ENU_world^-1). In (-pi, pi].
+double closestHeadingTurn(const Quatd& left, const Quatd& qEnuSensor, const Quatd& target);
 
 // Yaw-only heading reset, any time, no pose needed: turns the capture world about up so that
 // the pelvis of the given (solved) pose faces +Z. Mountings are kept.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <utility>
 
 #include <fmt/format.h>
@@ -41,7 +42,8 @@ BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> se
       period_(periodFromHz(options.rateHz)),
       solver_(skeleton, maskOf(sensors_), options.solver),
       held_(sensors_.size()),
-      online_(sensors_.size(), true) {
+      online_(sensors_.size(), true),
+      headingTurn_(sensors_.size(), 0.0) {
     sensorOfSegment_.fill(-1);
     nominal_.fill(Quatd::Identity());
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
@@ -78,6 +80,17 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         firstUpdate_ = t;
     }
     auto& h = held_[static_cast<std::size_t>(u.sensor)];
+    // A free heading's turn from the calibration (the averaging below takes the orientation as
+    // it came: a calibration finds the turn anew).
+    auto turned = [&u](double turn) {
+        return turn == 0 ? u.qEnuSensor
+                         : (Eigen::Quaternionf(Eigen::AngleAxisf(static_cast<float>(turn),
+                                                                 Eigen::Vector3f::UnitZ())) *
+                            u.qEnuSensor)
+                               .normalized();
+    };
+    const double turn = headingTurn_[static_cast<std::size_t>(u.sensor)];
+    Eigen::Quaternionf q = turned(turn);
     if (h.count > 0 && t > h.latestT) {
         h.previous = h.latest;
         h.previousT = h.latestT;
@@ -85,7 +98,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     } else if (h.count == 0) {
         h.count = 1;
     }
-    h.latest = u.qEnuSensor;
+    h.latest = q;
     h.latestT = t;
     h.rateRadS = u.rateRadS;
     if (!gridStarted_ && calibrated_) {
@@ -114,6 +127,9 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         if (!wasCalibrated) {
             return events;
         }
+        if (headingTurn_[static_cast<std::size_t>(u.sensor)] != turn) {
+            q = turned(headingTurn_[static_cast<std::size_t>(u.sensor)]);  // a new calibration's
+        }
     }
     if (!calibrated_) {
         return events;
@@ -122,7 +138,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         for (std::size_t k = 0; k < 2; ++k) {
             if (u.sensor == footSensor_[k]) {
                 FootInertial& f = footInertial_[k];
-                f.add(u.qEnuSensor.cast<double>(), u.specificForceMps2.cast<double>(),
+                f.add(q.cast<double>(), u.specificForceMps2.cast<double>(),
                       u.rateRadS.cast<double>(), toSeconds(h.latestT - h.previousT));
                 footHistory_[k].push(
                     FootSample{t, f.valid(), f.still(), f.velocityEnuMps(), f.rateEnuRadS()});
@@ -139,7 +155,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
             --pelvisCount_;
         }
         pelvisPending_[(pelvisHead_ + pelvisCount_) % kPelvisPending] =
-            PelvisForce{t, u.qEnuSensor.cast<double>() * u.specificForceMps2.cast<double>()};
+            PelvisForce{t, q.cast<double>() * u.specificForceMps2.cast<double>()};
         ++pelvisCount_;
     }
     if (headingResetAt_ && t >= *headingResetAt_) {
@@ -231,6 +247,8 @@ void BodyTracker::startCalibration(ReferencePoseKind pose, Timestamp from) {
     for (auto& w : r.windows) {
         w.sum.assign(sensors_.size(), Eigen::Vector4d::Zero());
         w.count.assign(sensors_.size(), 0);
+        w.free.assign(sensors_.size(), false);
+        w.unchecked.assign(sensors_.size(), false);
     }
     request_ = std::move(r);
     state_ = CalibrationStatus::State::Averaging;
@@ -265,8 +283,136 @@ void BodyTracker::forget(std::size_t sensor) {
         for (auto& w : request_->windows) {
             w.sum[sensor].setZero();
             w.count[sensor] = 0;
+            w.free[sensor] = false;
+            w.unchecked[sensor] = false;
         }
     }
+    // A free heading starts afresh too: the calibration's orientations of the sensor are in a
+    // frame that is gone, and no later measurement of the new one can re-express them.
+    if (calibrationInput_ && (calibrationInput_->free & bit(sensors_[sensor].segment)) != 0) {
+        calibrationInput_->free &= ~bit(sensors_[sensor].segment);
+        calibrationInput_->lost |= bit(sensors_[sensor].segment);
+    }
+    // Its turn was for the heading that is gone.
+    headingTurn_[sensor] = 0;
+}
+
+void BodyTracker::turnHeld(std::size_t i, double angleRad) {
+    const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitZ()));  // about ENU up
+    const Eigen::Quaternionf turnF = turn.cast<float>();
+    HeldOrientation& h = held_[i];
+    h.previous = (turnF * h.previous).normalized();
+    h.latest = (turnF * h.latest).normalized();
+    if (i == static_cast<std::size_t>(pelvisSensor_)) {
+        // The pelvis' forces not yet taken by a pose are in the frame that turned.
+        for (std::size_t k = 0; k < pelvisCount_; ++k) {
+            auto& f = pelvisPending_[(pelvisHead_ + k) % kPelvisPending].forceEnuMps2;
+            f = turn * f;
+        }
+        pelvisForceSumEnu_ = turn * pelvisForceSumEnu_;
+    }
+    for (std::size_t k = 0; k < 2; ++k) {
+        if (footSensor_[k] == static_cast<int>(i)) {
+            // Its dead reckoning integrated in the old frame: start it again from the next still
+            // instant, as after an outage.
+            footInertial_[k].reset();
+            footHistory_[k].clear();
+        }
+    }
+}
+
+void BodyTracker::applyHeadingTurns() {
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        const int seg = idx(sensors_[i].segment);
+        const double turn = has(calibration_.freeHeading & calibration_.mask, seg)
+                                ? calibration_.headingTurnRad[static_cast<std::size_t>(seg)]
+                                : 0.0;
+        if (turn != headingTurn_[i]) {
+            if (held_[i].count > 0) {
+                turnHeld(i, std::remainder(turn - headingTurn_[i], 2 * std::numbers::pi));
+            }
+            headingTurn_[i] = turn;
+        }
+    }
+}
+
+TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
+    TrackerEvents events;
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= sensors_.size() ||
+        !std::isfinite(angleRad)) {
+        return events;
+    }
+    const auto i = static_cast<std::size_t>(sensor);
+    const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitZ()));  // about ENU up
+    // The filter's frame turned: what is held (taken with the calibration's turn, if any) turns
+    // with it; the calibration's turn is replaced below.
+    turnHeld(i, angleRad);
+    if (request_) {
+        // A rotation on the left is linear in the quaternion's components: the turned sum is the
+        // sum of the turned orientations, so the average goes on in the new frame.
+        Eigen::Matrix4d left;  // (w, x, y, z) -> turn * q
+        const double w = turn.w();
+        const double z = turn.z();
+        left << w, 0, 0, -z, 0, w, -z, 0, 0, z, w, 0, z, 0, 0, w;
+        for (auto& win : request_->windows) {
+            win.sum[i] = left * win.sum[i];
+            win.free[i] = false;
+        }
+    }
+    const SegmentMask seg = bit(sensors_[i].segment);
+    if (!calibrationInput_ || (calibrationInput_->free & seg) == 0) {
+        return events;
+    }
+    CalibrationInput in = *calibrationInput_;
+    for (auto& f : in.frames) {
+        auto& q = f.qEnuSensor[static_cast<std::size_t>(idx(sensors_[i].segment))];
+        q = (turn * q).normalized();
+    }
+    in.free &= ~seg;
+    Result<BodyCalibration> cal = computeCalibration(in, calibration_.tNs);
+    if (!cal) {
+        return events;  // it was computed from these orientations once: cannot fail now
+    }
+    // A heading reset since the calibration turned the capture world by the difference: keep it.
+    const double resetTurn = calibration_.headingRad - calibrationInput_->headingRad;
+    in.headingRad = cal->headingRad;
+    cal->headingRad = std::remainder(cal->headingRad + resetTurn, 2 * std::numbers::pi);
+    calibrationInput_ = in;
+    calibration_ = *cal;
+    // This sensor's turn dropped, the free ones' anew (relative to the capture heading now).
+    applyHeadingTurns();
+    solver_.setCalibration(calibration_);
+    // The aiding's low-passed velocity is in the old world.
+    rootVelocityValid_ = false;
+    events.reexpressed = true;
+    return events;
+}
+
+Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& in,
+                                                        std::int64_t tNs) const {
+    CalibrationOptions copt;
+    copt.nominalMounting = nominal_;
+    // The capture heading from the sensors whose headings are corrected; failing any, from all
+    // (a free heading is off by an angle of its own, an unchecked one by whatever its offset
+    // makes it: neither is better than the other).
+    copt.headingFrom = ~(in.free | in.unchecked | in.lost);
+    // A free heading's mounting: the one closest to the nominal about the vertical. A sensor
+    // lost since keeps that mounting (still the best known), but no turn: its orientations are
+    // in a new frame that nothing relates to the one averaged.
+    copt.freeHeading = in.free | in.lost;
+    const auto pose =
+        in.method == CalibrationMethod::TPose ? ReferencePoseKind::T : ReferencePoseKind::N;
+    Result<BodyCalibration> cal = in.method == CalibrationMethod::TPlusN
+                                      ? calibrateTwoPose(in.frames[0], in.frames[1], copt, tNs)
+                                      : calibrateOnePose(pose, in.frames[0], copt, tNs);
+    if (cal) {
+        for (int i = 0; i < kSegmentCount; ++i) {
+            if (has(in.lost, i)) {
+                cal->headingTurnRad[static_cast<std::size_t>(i)] = 0;
+            }
+        }
+    }
+    return cal;
 }
 
 void BodyTracker::setSensorOnline(int sensor, bool online) {
@@ -359,6 +505,8 @@ void BodyTracker::average(const SensorUpdate& u) {
         }
         w.sum[i] += v;
         ++w.count[i];
+        w.free[i] = w.free[i] || u.headingFree;
+        w.unchecked[i] = w.unchecked[i] || u.headingUnchecked;
     }
 }
 
@@ -379,20 +527,27 @@ SensorFrame BodyTracker::averagedFrame(const Window& w, SegmentMask only) const 
 void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
     const Request r = std::move(*request_);
     request_.reset();
-    CalibrationOptions copt;
-    copt.nominalMounting = nominal_;
-    Result<BodyCalibration> cal = Error{EINVAL, "no calibration"};
+    CalibrationInput in;
+    in.method = r.method;
     if (r.method == CalibrationMethod::TPlusN) {
         // Both poses need the same sensors: those averaged in both windows.
         const SegmentMask both = averagedFrame(r.windows[0], ~SegmentMask{0}).mask &
                                  averagedFrame(r.windows[1], ~SegmentMask{0}).mask;
-        cal = calibrateTwoPose(averagedFrame(r.windows[0], both), averagedFrame(r.windows[1], both),
-                               copt, toNs(t));
+        in.frames = {averagedFrame(r.windows[0], both), averagedFrame(r.windows[1], both)};
     } else {
-        const auto pose =
-            r.method == CalibrationMethod::TPose ? ReferencePoseKind::T : ReferencePoseKind::N;
-        cal = calibrateOnePose(pose, averagedFrame(r.windows[0], ~SegmentMask{0}), copt, toNs(t));
+        in.frames[0] = averagedFrame(r.windows[0], ~SegmentMask{0});
     }
+    for (std::size_t i = 0; i < sensors_.size(); ++i) {
+        for (int w = 0; w < r.windowCount; ++w) {
+            if (r.windows[static_cast<std::size_t>(w)].free[i]) {
+                in.free |= bit(sensors_[i].segment) & in.frames[0].mask;
+            }
+            if (r.windows[static_cast<std::size_t>(w)].unchecked[i]) {
+                in.unchecked |= bit(sensors_[i].segment) & in.frames[0].mask;
+            }
+        }
+    }
+    Result<BodyCalibration> cal = computeCalibration(in, toNs(t));
     if (!cal) {
         state_ = CalibrationStatus::State::Failed;
         calibrationMessage_ = cal.error().message;
@@ -401,7 +556,10 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
         return;
     }
     const bool first = !calibrated_;
+    in.headingRad = cal->headingRad;
+    calibrationInput_ = in;
     calibration_ = *cal;
+    applyHeadingTurns();
     solver_.setCalibration(calibration_);
     solver_.resetRoot();
     rootVelocityValid_ = false;

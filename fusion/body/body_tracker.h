@@ -56,6 +56,14 @@ struct SensorUpdate {
     Eigen::Quaternionf qEnuSensor = Eigen::Quaternionf::Identity();  // sensor -> ENU
     Eigen::Vector3f specificForceMps2 = Eigen::Vector3f::Zero();     // sensor frame
     Eigen::Vector3f rateRadS = Eigen::Vector3f::Zero();              // sensor frame
+    // The orientation's heading is the gyroscope's alone (no magnetometer correction yet): it
+    // holds over time but is off north by an angle of the sensor's own, which realignHeading()
+    // gives once it is measured. A calibration that takes such a sensor is re-expressed then.
+    bool headingFree = false;
+    // The heading is magnetic but from a magnetometer nothing has corrected (nor found right): a
+    // calibration estimates the capture heading from the sensors whose headings are corrected
+    // (neither free nor unchecked) when there are any, else from all.
+    bool headingUnchecked = false;
 };
 
 // The latest calibration request and how far it got.
@@ -74,6 +82,10 @@ struct TrackerEvents {
     bool calibrationFailed = false;  // calibrationStatus().message says why
     bool headingReset = false;       // calibration().headingRad changed
     bool headingResetFailed = false;
+    // calibration() was re-expressed: a sensor calibrated with a free heading had it measured
+    // (realignHeading), and the calibration is now what it would have been with that sensor's
+    // heading magnetic then.
+    bool reexpressed = false;
     std::string message;  // a failure's reason
 };
 
@@ -117,6 +129,25 @@ public:
     // Turn the capture world about up so that the pelvis faces +Z as it did at t: applied on the
     // first update at or after t, from the orientations at t.
     void headingResetAt(Timestamp t);
+    // The sensor's orientations turn by angleRad about up (ENU +z, on the left: q_new =
+    // Rz(angleRad) q_old) from its next update on, because its heading, free until now (the
+    // gyroscope's alone), was measured against magnetic north. What is held of the sensor (its
+    // orientations, a calibration's averages) is turned with it; a calibration that took the
+    // sensor while its heading was free is re-expressed: recomputed from the orientations it
+    // averaged with this sensor's turned, the capture heading estimated anew from the sensors
+    // that are magnetic now (and a heading reset done since kept). Call it before the sensor's
+    // next update.
+    TrackerEvents realignHeading(int sensor, double angleRad);
+    // A sensor whose heading is free when a calibration takes it gets the mounting closest to
+    // its nominal one (BodyCalibration::nominalHeading; T+N's arms: measured) and a turn about up
+    // (BodyCalibration::headingTurnRad) that its orientations are taken with from then on, until
+    // its heading is realigned (the turn dropped, the calibration re-expressed) or its filter
+    // restarts.
+    // The segments whose sensors' headings were free when the calibration in use was taken and
+    // have not been realigned since (0 for the nominal mountings).
+    SegmentMask freeAtCalibration() const {
+        return calibrationInput_ ? calibrationInput_->free : 0;
+    }
 
     // A sensor out (lost, silent) or back. While out its updates are ignored and its segment is
     // not valid in any pose; it comes back with nothing held, its foot's dead reckoning
@@ -175,6 +206,17 @@ private:
         Timestamp from{};
         std::vector<Eigen::Vector4d> sum;
         std::vector<int> count;
+        std::vector<bool> free;       // an averaged update's heading was free
+        std::vector<bool> unchecked;  // ... or unchecked
+    };
+    // What the calibration in use was computed from, to re-express it (realignHeading).
+    struct CalibrationInput {
+        CalibrationMethod method = CalibrationMethod::None;
+        std::array<SensorFrame, 2> frames;  // the averaged orientations (T+N: the T-pose first)
+        SegmentMask free = 0;               // segments whose sensors' headings were free
+        SegmentMask unchecked = 0;          // ... or magnetic but unchecked
+        SegmentMask lost = 0;   // free, then the sensor's filter restarted: never re-expressed
+        double headingRad = 0;  // the capture heading the calibration estimated
     };
     struct Request {
         CalibrationMethod method = CalibrationMethod::None;
@@ -184,9 +226,17 @@ private:
     };
 
     void forget(std::size_t sensor);
+    // What is held of a sensor (its orientations, the pelvis' forces not yet taken) turned by
+    // angleRad about ENU up, its foot's dead reckoning restarted.
+    void turnHeld(std::size_t sensor, double angleRad);
+    // Each sensor's heading turn from the calibration in use (BodyCalibration::headingTurnRad
+    // for a free heading, none otherwise), what is held of it turned by the change.
+    void applyHeadingTurns();
     void average(const SensorUpdate& u);
     SensorFrame averagedFrame(const Window& w, SegmentMask only) const;
     void completeCalibration(Timestamp t, TrackerEvents& events);
+    // The calibration from its inputs (a heading reset done since, if any, added by the caller).
+    Result<BodyCalibration> computeCalibration(const CalibrationInput& in, std::int64_t tNs) const;
     void applyHeadingReset(Timestamp t, TrackerEvents& events);
     // A sensor's orientation at t: between its two latest samples, or carried on past the latest
     // at its gyroscope's rate for at most one sample interval. False when it has none.
@@ -204,6 +254,9 @@ private:
     std::array<Quatd, kSegmentCount> nominal_;
     std::vector<HeldOrientation> held_;
     std::vector<bool> online_;
+    // Per sensor: its orientations are taken turned by this about ENU up (a free heading's turn
+    // from the calibration in use; 0: as they come).
+    std::vector<double> headingTurn_;
     int pelvisSensor_ = -1;
     // The feet's sensors (-1 when none) and their dead reckoning.
     std::array<int, 2> footSensor_{-1, -1};
@@ -221,6 +274,7 @@ private:
     std::size_t pelvisCount_ = 0;
 
     BodyCalibration calibration_;
+    std::optional<CalibrationInput> calibrationInput_;  // none: the nominal mountings
     bool calibrated_ = false;
     std::optional<Request> request_;
     CalibrationStatus::State state_ = CalibrationStatus::State::NotStarted;

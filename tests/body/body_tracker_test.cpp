@@ -3,6 +3,7 @@
 // resets and segment validity are checked against what made them.
 #include "fusion/body/body_tracker.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -501,6 +502,316 @@ TEST(BodyTracker, AFailedCalibrationSaysWhyAndKeepsTheOneInUse) {
     EXPECT_EQ(s.message, events[0].message);
     EXPECT_TRUE(tracker.calibrated());  // still on the nominal mountings
     EXPECT_EQ(tracker.calibration().method, CalibrationMethod::None);
+}
+
+// Sensors whose headings are free (gyroscope-only, each off north by an angle of its own):
+// every update's orientation is Rz(-offset) times the true one, about ENU up, until the sensor's
+// heading is realigned; from then on it is the true one.
+struct FreeHeadings {
+    std::vector<double> offsetRad;  // per tracked sensor
+    std::vector<bool> free;
+
+    void feed(BodyTracker& tracker, const Suit& suit, Timestamp t, const Pose& pose,
+              double headingRad, std::vector<TrackerEvents>& events) const {
+        const SensorFrame f =
+            testing::sensorsFor(pose, suit.trueMounting, testing::kFullSuit, headingRad);
+        for (std::size_t i = 0; i < suit.sensors.size(); ++i) {
+            const Quatd truth =
+                f.qEnuSensor[static_cast<std::size_t>(idx(suit.sensors[i].segment))];
+            const Quatd q =
+                free[i] ? fromAxisAngle<double>(Vec3d::UnitZ(), -offsetRad[i]) * truth : truth;
+            SensorUpdate u;
+            u.sensor = static_cast<int>(i);
+            u.t = t;
+            u.qEnuSensor = q.normalized().cast<float>();
+            u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f);
+            u.headingFree = free[i];
+            events.push_back(tracker.update(u));
+        }
+    }
+};
+
+// A T-pose calibration taken while every sensor's heading was free (a first run without a
+// magnetometer calibration): each mounting takes the nominal heading about the vertical, the
+// rest from gravity; this suit's straps are tilted only, so the mountings are the true ones and
+// the joints are right before any heading is measured (the body as a whole faces the capture
+// heading estimated from the free headings). Each sensor's realignment (its measured offset,
+// later, in another pose) re-expresses the calibration as if that heading had been magnetic in
+// the T-pose: once all are realigned the mountings, the capture heading and the solved pose are
+// the ones a magnetic calibration finds.
+TEST(BodyTracker, RealigningFreeHeadingsReExpressesTheCalibration) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    for (std::size_t i = 0; i < suit.sensors.size(); ++i) {
+        h.offsetRad.push_back((std::fmod(83.0 * static_cast<double>(i) + 40.0, 360.0) - 180.0) *
+                              kDeg);
+        h.free.push_back(true);
+    }
+    const double heading = 25 * kDeg;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    std::mt19937 rng(13);
+    const Pose after = testing::randomPose(rng, 60 * kDeg);
+    tracker.startCalibration(ReferencePoseKind::T, at(500ms));
+    std::vector<TrackerEvents> events;
+    int reexpressed = 0;
+    double worstBefore = 0;
+    for (int k = 0; k < 500; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (k >= 300 && k < 300 + static_cast<int>(suit.sensors.size())) {
+            // From 3 s one sensor a sample has its offset measured.
+            const auto i = static_cast<std::size_t>(k - 300);
+            if (i == 0) {
+                EXPECT_EQ(tracker.freeAtCalibration(), testing::kFullSuit);
+                EXPECT_EQ(tracker.calibration().nominalHeading, testing::kFullSuit);
+                worstBefore = worstMountingError(tracker.calibration(), suit);
+                for (int j = 1; j < kSegmentCount; ++j) {
+                    if (has(testing::kFullSuit, j) && has(testing::kFullSuit, parentOf(j))) {
+                        const auto u = static_cast<std::size_t>(j);
+                        EXPECT_LT(tracker.pose().qLocal[u].angularDistance(after.qLocal[u]),
+                                  kTolRad)
+                            << board::segmentName(static_cast<Segment>(j));
+                    }
+                }
+            }
+            const TrackerEvents e = tracker.realignHeading(static_cast<int>(i), h.offsetRad[i]);
+            reexpressed += e.reexpressed ? 1 : 0;
+            h.free[i] = false;
+        }
+        h.feed(tracker, suit, t, t < at(2500ms) ? tpose : after, heading, events);
+        solveDue(tracker, t);
+    }
+    EXPECT_LT(worstBefore, kTolRad);
+    EXPECT_EQ(reexpressed, static_cast<int>(suit.sensors.size()));
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_EQ(tracker.calibration().freeHeading, 0U);
+    EXPECT_EQ(tracker.calibration().nominalHeading, 0U);
+    EXPECT_EQ(tracker.calibration().method, CalibrationMethod::TPose);
+    EXPECT_EQ(tracker.calibration().tNs, toNs(at(1500ms)));
+    EXPECT_NEAR(tracker.calibration().headingRad, heading, kTolRad);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
+    // A heading that is magnetic already: its step (drift corrected) leaves the calibration.
+    const BodyCalibration before = tracker.calibration();
+    const TrackerEvents again = tracker.realignHeading(0, 2 * kDeg);
+    EXPECT_FALSE(again.reexpressed);
+    EXPECT_EQ(tracker.calibration().mounting[0].coeffs(), before.mounting[0].coeffs());
+}
+
+// Only three sensors free at the calibration: the capture heading comes from the magnetic ones
+// alone, so their mountings are right from the start and the free ones' realignment leaves them
+// as they are. Two free ones' straps are also off by 8 deg about the segment's vertical: their
+// nominal-heading mountings miss that part only (gravity gives the rest) until the realignment
+// measures it, and their segments move with the body meanwhile (off by that much, not by their
+// free angles). T+N measures the arms' whole. A heading reset done before the realignment is
+// kept.
+void realignSomeFree(bool twoPose) {
+    Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    const std::vector<int> freeOnes = {suit.sensor(S::RHand), suit.sensor(S::LCalf),
+                                       suit.sensor(S::Skull)};
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    // The straps' vertical components cancel in the capture heading estimated from all 17 (each
+    // sensor's contribution turns by its strap's yaw): it is the same before and after.
+    const std::array<double, 3> strapYaw = {0, 8 * kDeg, -8 * kDeg};
+    std::vector<double> yawOf(suit.sensors.size(), 0.0);
+    for (std::size_t k = 0; k < freeOnes.size(); ++k) {
+        const auto i = static_cast<std::size_t>(freeOnes[k]);
+        yawOf[i] = strapYaw[k];
+        h.offsetRad[i] = (120.0 - 110.0 * static_cast<double>(k)) * kDeg;
+        h.free[i] = true;
+        const auto u = static_cast<std::size_t>(idx(suit.sensors[i].segment));
+        suit.trueMounting[u] =
+            (fromAxisAngle<double>(Vec3d::UnitY(), strapYaw[k]) * suit.trueMounting[u])
+                .normalized();
+    }
+    const double heading = -40 * kDeg;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const Pose npose = testing::referencePose(ReferencePoseKind::N);
+    std::mt19937 rng(17);
+    Pose after = testing::randomPose(rng, 40 * kDeg);
+    if (twoPose) {
+        tracker.startTwoPoseCalibration(at(500ms), at(2s));
+    } else {
+        tracker.startCalibration(ReferencePoseKind::T, at(500ms));
+    }
+    const Timestamp done = twoPose ? at(3s) : at(1500ms);
+    std::vector<TrackerEvents> events;
+    std::array<Quatd, kSegmentCount> magneticMountings{};
+    for (int k = 0; k < 700; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(4s)) {
+            EXPECT_EQ(tracker.calibration().tNs, toNs(done));
+            EXPECT_NEAR(tracker.calibration().headingRad, heading, kTolRad);
+            magneticMountings = tracker.calibration().mounting;
+            for (const auto& s : suit.sensors) {
+                const auto u = static_cast<std::size_t>(idx(s.segment));
+                const int i = suit.sensor(s.segment);
+                const double off = magneticMountings[u].angularDistance(suit.trueMounting[u]);
+                const double pose = tracker.pose().qWorld[u].angularDistance(after.qWorld[u]);
+                const bool nominal =
+                    h.free[static_cast<std::size_t>(i)] && !(twoPose && isArm(s.segment));
+                EXPECT_EQ(has(tracker.calibration().nominalHeading, idx(s.segment)), nominal);
+                if (!nominal || yawOf[static_cast<std::size_t>(i)] == 0) {
+                    // (T+N finds the arms' mountings from gravity alone: no heading in them.
+                    // A strap tilted only: the nominal heading is its own.)
+                    EXPECT_LT(off, kTolRad) << board::segmentName(s.segment);
+                    EXPECT_LT(pose, kTolRad) << board::segmentName(s.segment);
+                    continue;
+                }
+                EXPECT_GT(off, 4 * kDeg) << board::segmentName(s.segment);
+                EXPECT_LT(off, 12 * kDeg) << board::segmentName(s.segment);
+                EXPECT_LT(pose, 12 * kDeg) << board::segmentName(s.segment);
+                // The sensor's vertical is the true one.
+                const Vec3d up = Vec3d::UnitY();
+                EXPECT_LT(
+                    (magneticMountings[u].conjugate() * up - suit.trueMounting[u].conjugate() * up)
+                        .norm(),
+                    kTolRad)
+                    << board::segmentName(s.segment);
+            }
+            const SegmentMask freeSegments = bit(S::RHand) | bit(S::LCalf) | bit(S::Skull);
+            EXPECT_EQ(tracker.calibration().freeHeading, freeSegments);
+            tracker.headingResetAt(t);
+        }
+        if (t == at(5s)) {
+            for (int i : freeOnes) {
+                EXPECT_TRUE(tracker.realignHeading(i, h.offsetRad[static_cast<std::size_t>(i)])
+                                .reexpressed);
+                h.free[static_cast<std::size_t>(i)] = false;
+            }
+        }
+        const Pose& pose = t < (twoPose ? at(1800ms) : at(2500ms)) ? tpose
+                           : twoPose && t < at(3500ms)             ? npose
+                                                                   : after;
+        h.feed(tracker, suit, t, pose, heading, events);
+        solveDue(tracker, t);
+    }
+    int resets = 0;
+    for (const auto& e : events) {
+        resets += e.headingReset ? 1 : 0;
+    }
+    EXPECT_EQ(resets, 1);
+    EXPECT_EQ(tracker.calibration().method,
+              twoPose ? CalibrationMethod::TPlusN : CalibrationMethod::TPose);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    for (const auto& s : suit.sensors) {
+        const auto u = static_cast<std::size_t>(idx(s.segment));
+        if (std::find(freeOnes.begin(), freeOnes.end(), suit.sensor(s.segment)) == freeOnes.end()) {
+            // The capture heading is estimated again from all 17 (float orientations): the same
+            // to float precision.
+            EXPECT_LT(tracker.calibration().mounting[u].angularDistance(magneticMountings[u]),
+                      kTolRad)
+                << "magnetic at the calibration, yet moved: " << board::segmentName(s.segment);
+        }
+    }
+    // The reset turned the world so that the pelvis faced +Z at 4 s (in `after`): kept.
+    EXPECT_NEAR(tracker.calibration().headingRad,
+                std::remainder(heading + pelvisHeading(after), 2 * kPi), kTolRad);
+    // The joints are the pose's (the world turned as a whole).
+    for (int i = 1; i < kSegmentCount; ++i) {
+        if (has(testing::kFullSuit, i) && has(testing::kFullSuit, parentOf(i))) {
+            const auto u = static_cast<std::size_t>(i);
+            EXPECT_LT(tracker.pose().qLocal[u].angularDistance(after.qLocal[u]), kTolRad)
+                << board::segmentName(static_cast<Segment>(i));
+        }
+    }
+}
+
+TEST(BodyTracker, RealigningSomeFreeHeadingsLeavesTheMagneticOnesMountings) {
+    realignSomeFree(false);
+}
+
+TEST(BodyTracker, RealigningSomeFreeHeadingsReExpressesATPlusNCalibration) {
+    realignSomeFree(true);
+}
+
+// A free sensor whose filter restarts after the calibration (a new free frame, unrelated to the
+// one averaged): it keeps its nominal-heading mounting through a later re-expression, with no
+// turn, and is never re-expressed itself.
+TEST(BodyTracker, AFreeSensorRestartedKeepsItsNominalHeadingMountingWithoutATurn) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    const auto thigh = static_cast<std::size_t>(suit.sensor(S::LThigh));
+    const auto hand = static_cast<std::size_t>(suit.sensor(S::RHand));
+    h.offsetRad[thigh] = 100 * kDeg;
+    h.offsetRad[hand] = -70 * kDeg;
+    h.free[thigh] = true;
+    h.free[hand] = true;
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const auto seg = static_cast<std::size_t>(idx(S::LThigh));
+    Quatd mountingBefore;
+    for (int k = 0; k < 400; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(2s)) {
+            ASSERT_TRUE(tracker.calibrated());
+            EXPECT_NE(tracker.calibration().headingTurnRad[seg], 0.0);
+            mountingBefore = tracker.calibration().mounting[seg];
+            EXPECT_LT(mountingBefore.angularDistance(suit.trueMounting[seg]), kTolRad);
+            tracker.resetSensor(static_cast<int>(thigh));
+            h.offsetRad[thigh] = -20 * kDeg;  // its restarted filter's own free angle
+        }
+        if (t == at(3s)) {
+            EXPECT_FALSE(tracker.realignHeading(static_cast<int>(thigh), 5 * kDeg).reexpressed);
+            EXPECT_TRUE(
+                tracker.realignHeading(static_cast<int>(hand), h.offsetRad[hand]).reexpressed);
+            h.free[hand] = false;
+            h.offsetRad[thigh] -= 5 * kDeg;
+        }
+        h.feed(tracker, suit, t, tpose, 30 * kDeg, events);
+    }
+    const BodyCalibration& cal = tracker.calibration();
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_LT(cal.mounting[seg].angularDistance(mountingBefore), 1e-9);
+    EXPECT_TRUE(has(cal.freeHeading, idx(S::LThigh)));
+    EXPECT_TRUE(has(cal.nominalHeading, idx(S::LThigh)));
+    EXPECT_EQ(cal.headingTurnRad[seg], 0.0);
+    EXPECT_FALSE(has(cal.freeHeading, idx(S::RHand)));
+    EXPECT_LT(worstMountingError(cal, suit), kTolRad);
+}
+
+// A heading realigned while the calibration is still averaging: the sums turn with it, and the
+// calibration comes out as if the sensor had been magnetic throughout.
+TEST(BodyTracker, RealigningDuringTheAverageTurnsWhatWasAveraged) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    const auto pelvis = static_cast<std::size_t>(suit.sensor(S::Pelvis));
+    h.offsetRad[pelvis] = 150 * kDeg;
+    h.free[pelvis] = true;
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    for (int k = 0; k < 150; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(400ms)) {
+            EXPECT_FALSE(tracker.realignHeading(static_cast<int>(pelvis), h.offsetRad[pelvis])
+                             .reexpressed);  // nothing calibrated yet
+            h.free[pelvis] = false;
+        }
+        h.feed(tracker, suit, t, tpose, 10 * kDeg, events);
+    }
+    ASSERT_TRUE(tracker.calibrated());
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_NEAR(tracker.calibration().headingRad, 10 * kDeg, kTolRad);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
 }
 
 }  // namespace

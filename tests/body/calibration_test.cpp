@@ -198,6 +198,209 @@ TEST(HeadingReset, TurnsTheWorldSoThePelvisFacesForward) {
     }
 }
 
+// What a free heading's mounting must be: of the rotations R_v(psi) * truth (the sensor turned
+// about the world vertical, v in the segment's frame), the one closest to the nominal mounting:
+// the error truth * nominal^-1 with its twist about v taken out (E = twist * swing, swing's axis
+// perpendicular to v), on the nominal: the vertical-axis component the nominal's, the other two
+// the truth's (gravity's).
+Quatd nominalHeadingMounting(const Quatd& truth, const Quatd& nominal, const Vec3d& v) {
+    const Quatd e = truth * nominal.conjugate();
+    const double a = e.vec().dot(v);
+    const Quatd twist = Quatd(e.w(), a * v.x(), a * v.y(), a * v.z()).normalized();
+    return (twist.conjugate() * e * nominal).normalized();
+}
+
+// The segment frame's vertical in a reference pose.
+Vec3d segmentUp(ReferencePoseKind pose, Segment s) {
+    return referenceOrientation(pose, s).conjugate() * Vec3d::UnitY();
+}
+
+// A free (gyroscope-only) heading: the sensor's orientation off by an arbitrary turn about up.
+// Its mounting takes the nominal heading about the vertical and the rest from gravity, exactly;
+// the turn kept for it is the one that makes its orientations consistent with that mounting. A
+// magnetic sensor beside it gets the mounting it gets without any free one.
+void freeHeadingGetsTheNominalHeading(ReferencePoseKind pose) {
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> anyTurn(-kPi, kPi);
+    std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
+    std::array<Quatd, kSegmentCount> truth;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        // A strap off by up to 20 deg about any axis (its vertical component included).
+        truth[static_cast<std::size_t>(i)] =
+            (testing::randomRotation(rng, 20 * kDeg) * nominal[static_cast<std::size_t>(i)])
+                .normalized();
+    }
+    const double heading = 0.7;
+    const SensorFrame magnetic =
+        testing::sensorsFor(testing::referencePose(pose), truth, testing::kFullSuit, heading);
+    SensorFrame f = magnetic;
+    const SegmentMask free = bit(S::Pelvis) | bit(S::LForearm) | bit(S::RHand) | bit(S::LCalf) |
+                             bit(S::Skull) | bit(S::RUpperarm);
+    std::array<double, kSegmentCount> offset{};
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (has(free, i)) {
+            offset[static_cast<std::size_t>(i)] = anyTurn(rng);
+            f = withHeadingError(f, static_cast<Segment>(i), offset[static_cast<std::size_t>(i)]);
+        }
+    }
+    CalibrationOptions o;
+    o.nominalMounting = nominal;
+    o.headingFrom = ~free;
+    CalibrationOptions allMagnetic = o;
+    o.freeHeading = free;
+    auto cal = calibrateOnePose(pose, f, o);
+    auto plain = calibrateOnePose(pose, f, allMagnetic);
+    ASSERT_TRUE(cal.ok()) << cal.error().message;
+    ASSERT_TRUE(plain.ok());
+    EXPECT_EQ(cal->freeHeading, free);
+    EXPECT_EQ(cal->nominalHeading, free);
+    EXPECT_EQ(cal->headingRad, plain->headingRad);
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if (!has(testing::kFullSuit, i)) {
+            continue;
+        }
+        const auto u = static_cast<std::size_t>(i);
+        const auto s = static_cast<Segment>(i);
+        const Quatd& m = cal->mounting[u];
+        if (!has(free, i)) {
+            // Untouched: the same numbers to the last digit.
+            EXPECT_EQ(m.coeffs(), plain->mounting[u].coeffs()) << board::segmentName(s);
+            EXPECT_EQ(cal->headingTurnRad[u], 0.0);
+            continue;
+        }
+        const Vec3d v = segmentUp(pose, s);
+        EXPECT_LT(angleBetween(m, nominalHeadingMounting(truth[u], nominal[u], v)), 1e-9)
+            << board::segmentName(s);
+        // Gravity's part: the vertical seen from the sensor is the true one.
+        EXPECT_LT((m.conjugate() * v - truth[u].conjugate() * v).norm(), 1e-9);
+        // The vertical-axis part: no twist about v left between it and the nominal mounting.
+        EXPECT_NEAR((m * nominal[u].conjugate()).vec().dot(v), 0.0, 1e-9);
+        // The turn makes the sensor's orientation the one that mounting implies in the capture
+        // world (the subject in the pose, facing the estimated heading).
+        const Quatd turned =
+            Quatd(Eigen::AngleAxisd(cal->headingTurnRad[u], Vec3d::UnitZ())) * f.qEnuSensor[u];
+        EXPECT_LT(angleBetween(turned, cal->qEnuWorld() * referenceOrientation(pose, s) * m), 1e-9);
+        EXPECT_GT(std::abs(cal->headingTurnRad[u]), 0.0);
+        EXPECT_LE(std::abs(cal->headingTurnRad[u]), kPi);
+    }
+}
+
+TEST(FreeHeadingCalibration, TPoseTakesTheNominalHeadingAndGravityExactly) {
+    freeHeadingGetsTheNominalHeading(ReferencePoseKind::T);
+}
+
+TEST(FreeHeadingCalibration, NPoseTakesTheNominalHeadingAndGravityExactly) {
+    freeHeadingGetsTheNominalHeading(ReferencePoseKind::N);
+}
+
+// A strap off by a tilt alone (no vertical component): the free sensor's mounting is the true one
+// and its turn undoes its heading offset exactly (the capture heading known).
+TEST(FreeHeadingCalibration, ATiltedStrapGivesTheTrueMountingAndUndoesTheOffset) {
+    std::mt19937 rng(37);
+    std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
+    std::array<Quatd, kSegmentCount> truth = nominal;
+    const double offset = 2.5;  // rad: the free heading's
+    truth[idx(S::LThigh)] =
+        (fromAxisAngle<double>(Vec3d::UnitX(), 12 * kDeg) * nominal[idx(S::LThigh)]).normalized();
+    SensorFrame f =
+        withHeadingError(testing::sensorsFor(testing::referencePose(ReferencePoseKind::T), truth,
+                                             testing::kFullSuit, -0.3),
+                         S::LThigh, offset);
+    CalibrationOptions o;
+    o.nominalMounting = nominal;
+    o.headingRad = -0.3;
+    o.freeHeading = bit(S::LThigh);
+    auto cal = calibrateOnePose(ReferencePoseKind::T, f, o);
+    ASSERT_TRUE(cal.ok());
+    EXPECT_LT(angleBetween(cal->mounting[idx(S::LThigh)], truth[idx(S::LThigh)]), 1e-9);
+    EXPECT_NEAR(std::remainder(cal->headingTurnRad[idx(S::LThigh)] + offset, 2 * kPi), 0.0, 1e-9);
+}
+
+// T+N measures an arm's mounting whole from two gravity directions: a free heading changes
+// nothing of it (mode measured), and its turn is fitted to it; the trunk's free sensors take
+// the nominal heading.
+TEST(FreeHeadingCalibration, TwoPoseArmsAreMeasuredAndTheirTurnFitted) {
+    std::mt19937 rng(41);
+    std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
+    std::array<Quatd, kSegmentCount> truth;
+    for (int i = 0; i < kSegmentCount; ++i) {
+        truth[static_cast<std::size_t>(i)] =
+            (testing::randomRotation(rng, 20 * kDeg) * nominal[static_cast<std::size_t>(i)])
+                .normalized();
+    }
+    const SegmentMask free = bit(S::LForearm) | bit(S::RUpperarm) | bit(S::Pelvis);
+    const double heading = 1.2;
+    SensorFrame t = testing::sensorsFor(testing::referencePose(ReferencePoseKind::T), truth,
+                                        testing::kFullSuit, heading);
+    SensorFrame n = testing::sensorsFor(testing::referencePose(ReferencePoseKind::N), truth,
+                                        testing::kFullSuit, heading);
+    std::array<double, kSegmentCount> offset{};
+    offset[idx(S::LForearm)] = 1.9;
+    offset[idx(S::RUpperarm)] = -2.8;
+    offset[idx(S::Pelvis)] = 0.6;
+    for (Segment s : {S::LForearm, S::RUpperarm, S::Pelvis}) {
+        t = withHeadingError(t, s, offset[idx(s)]);
+        n = withHeadingError(n, s, offset[idx(s)]);
+    }
+    CalibrationOptions o;
+    o.nominalMounting = nominal;
+    o.headingRad = heading;
+    o.freeHeading = free;
+    auto cal = calibrateTwoPose(t, n, o);
+    ASSERT_TRUE(cal.ok()) << cal.error().message;
+    EXPECT_EQ(cal->freeHeading, free);
+    EXPECT_EQ(cal->nominalHeading, bit(S::Pelvis));
+    for (Segment s : {S::LForearm, S::RUpperarm}) {
+        EXPECT_LT(angleBetween(cal->mounting[idx(s)], truth[idx(s)]), 1e-6)
+            << board::segmentName(s);
+        EXPECT_NEAR(std::remainder(cal->headingTurnRad[idx(s)] + offset[idx(s)], 2 * kPi), 0.0,
+                    1e-6);
+    }
+    const Vec3d up = Vec3d::UnitY();
+    EXPECT_LT(
+        (cal->mounting[idx(S::Pelvis)].conjugate() * up - truth[idx(S::Pelvis)].conjugate() * up)
+            .norm(),
+        1e-9);
+}
+
+TEST(CalibrationText, FreeHeadingsRoundTripAndOldTextsReadAsMeasured) {
+    BodyCalibration c;
+    c.method = CalibrationMethod::TPose;
+    c.mask = bit(S::Pelvis) | bit(S::LHand) | bit(S::RHand);
+    c.freeHeading = bit(S::LHand) | bit(S::RHand);
+    c.nominalHeading = bit(S::LHand);
+    c.headingTurnRad[idx(S::LHand)] = -2.75;
+    c.headingTurnRad[idx(S::RHand)] = 0.125;
+    const std::string text = toText(c);
+    EXPECT_THAT(text, HasSubstr("heading_free l_hand -2.75 nominal-heading\n"));
+    EXPECT_THAT(text, HasSubstr("heading_free r_hand 0.125 measured\n"));
+    auto back = parseBodyCalibration(text, "cal.txt");
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(back->freeHeading, c.freeHeading);
+    EXPECT_EQ(back->nominalHeading, c.nominalHeading);
+    EXPECT_EQ(back->headingTurnRad, c.headingTurnRad);
+    // A calibration without a free heading writes what it always did; such a text reads with
+    // none.
+    c.freeHeading = 0;
+    EXPECT_THAT(toText(c), ::testing::Not(HasSubstr("heading_free")));
+    auto old = parseBodyCalibration(
+        "method tpose\ntime_ns 5\nheading_rad 0.5\nmounting pelvis 1 0 0 0\n", "old.cap");
+    ASSERT_TRUE(old.ok()) << old.error().message;
+    EXPECT_EQ(old->freeHeading, 0U);
+    EXPECT_EQ(old->nominalHeading, 0U);
+    // Bad lines, with their numbers.
+    auto r = parseBodyCalibration("method tpose\nheading_free pelvis 0.5 guessed\n", "rec.cap");
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message, HasSubstr("rec.cap:2: heading_free: expected nominal-heading"));
+    r = parseBodyCalibration(
+        "method tpose\nmounting pelvis 1 0 0 0\nheading_free l_hand 0.5 "
+        "measured\n",
+        "rec.cap");
+    ASSERT_FALSE(r.ok());
+    EXPECT_THAT(r.error().message,
+                HasSubstr("rec.cap:3: heading_free l_hand: expected a mounting"));
+}
+
 TEST(CalibrationText, RoundTrips) {
     std::mt19937 rng(29);
     BodyCalibration c;

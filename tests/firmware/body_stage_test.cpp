@@ -4,11 +4,16 @@
 // preview renders those poses on its own thread.
 #include "firmware/runtime/body_stage.h"
 
+#include <algorithm>
 #include <array>
+#include <bit>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -16,6 +21,7 @@
 
 #include "board/loader.h"
 #include "board/sim/virtual_suit.h"
+#include "firmware/reprocess.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/stepped_capture.h"
@@ -229,6 +235,215 @@ TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMa
     ASSERT_TRUE(next.setMagEstimatorState(sensor, *fusion.magEstimatorState(sensor)));
     EXPECT_TRUE(next.magEstimate(sensor).good);
     EXPECT_EQ(next.magEstimate(sensor).offsetUt, fusion.magEstimate(sensor).offsetUt);
+}
+
+// The same sensor, free (gyroscope-only) while the estimate learns: the moment the estimate is
+// good, the heading error is averaged over ~2 s of readings and the filter's heading is turned by
+// it in one step, reported (count, angle, time) for the stages after. The angle is the one
+// between the truth and the free heading before the step, and the orientation is right from the
+// step on (no slow blend).
+TEST(FusionStage, StepsAFreeHeadingToMagneticNorthAndReportsTheAngle) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    firmware::FusionStage fusion(b, nullptr);
+    const int sensor = 6;
+    const double odr = b.sensors[sensor].achievedOdrHz;
+    const double magOdr = b.sensors[sensor].magOdrHz > 0 ? b.sensors[sensor].magOdrHz : odr;
+    const int magEvery = std::max(1, static_cast<int>(std::lround(odr / magOdr)));
+    const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
+    const Eigen::Vector3d offset(-150.0, 90.0, 40.0);
+    Quatd truth(Eigen::AngleAxisd(-75.0 * hal::kPi / 180.0, Eigen::Vector3d::UnitZ()));
+    const double dt = 1.0 / odr;
+    firmware::SensorSample s;
+    s.sensor = sensor;
+    Timestamp t{1s};
+    // Heading of a rotation that is (nearly) about ENU up: Rz(a) takes north to (-sin a, cos a).
+    const auto yawOf = [](const Quatd& r) {
+        const Eigen::Vector3d n = r * Eigen::Vector3d::UnitY();
+        return std::atan2(-n.x(), n.y());
+    };
+    std::optional<double> expected;
+    double errAtStepDeg = -1;
+    bool freeBefore = true;
+    for (int i = 0; i < static_cast<int>(300 * odr) && !expected; ++i) {
+        const double tau = static_cast<double>(i) * dt;
+        const Eigen::Vector3d w =
+            i < static_cast<int>(3 * odr)
+                ? Eigen::Vector3d::Zero()
+                : Eigen::Vector3d(1.1 * std::cos(0.37 * tau), 1.3 * std::sin(0.29 * tau),
+                                  0.9 * std::cos(0.17 * tau));
+        const Quatd before = fusion.latest(sensor) != nullptr
+                                 ? fusion.latest(sensor)->orientation.cast<double>()
+                                 : Quatd::Identity();
+        const Quatd truthBefore = truth;
+        if (w.norm() > 0) {
+            truth = (truth * Quatd(Eigen::AngleAxisd(w.norm() * dt, w.normalized()))).normalized();
+        }
+        s.sample.gyrRadps = w.cast<float>();
+        s.sample.accMps2 = (truth.conjugate() * Eigen::Vector3d(0, 0, 9.81)).cast<float>();
+        s.sample.magUt = (truth.conjugate() * field + offset).cast<float>();
+        s.sample.flags = (i % magEvery == 0) ? hal::ImuSample::kMagFresh : 0;
+        s.sample.t = t;
+        t += periodFromHz(odr);
+        const bool freeNow = fusion.headingFree(sensor);
+        fusion.onSample(s);
+        if (fusion.headingStep(sensor).count > 0) {
+            freeBefore = freeNow;
+            expected = yawOf(truthBefore * before.conjugate());
+            errAtStepDeg =
+                fusion.latest(sensor)->orientation.cast<double>().angularDistance(truth) * 180 /
+                hal::kPi;
+        }
+    }
+    ASSERT_TRUE(expected) << "no step in 300 s";
+    const firmware::FusionStage::HeadingStep& step = fusion.headingStep(sensor);
+    EXPECT_EQ(step.count, 1U);
+    EXPECT_EQ(step.t, t - periodFromHz(odr));
+    EXPECT_TRUE(freeBefore);
+    EXPECT_FALSE(fusion.headingFree(sensor));
+    EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Online);
+    // The free heading started where the first sample put it (the truth's -75 deg unknown to it),
+    // and drifted little since: the step is about that.
+    EXPECT_GT(std::abs(*expected), 30 * hal::kPi / 180);
+    EXPECT_NEAR(std::remainder(step.angleRad - *expected, 2 * hal::kPi), 0.0, 2.0 * hal::kPi / 180);
+    EXPECT_LT(errAtStepDeg, 3.0);
+    EXPECT_EQ(fusion.alignReadings(sensor), static_cast<std::uint32_t>(std::lround(2 * magOdr)));
+}
+
+// What a reprocess and a live body stage write, kept to compare.
+struct KeptRecords final : firmware::ReprocessSink {
+    struct PoseRec {
+        Timestamp t{};
+        std::vector<Eigen::Quaternionf> joints;
+    };
+    struct EventRec {
+        Timestamp t{};
+        firmware::cap::EventKind kind{};
+        int sensor = -1;
+        std::string text;
+    };
+    std::vector<PoseRec> poses;
+    std::vector<EventRec> events;
+    std::vector<std::string> metadataRecords;
+    void rawSample(int, const hal::ImuSample&) override {}
+    void orientation(int, Timestamp, const Eigen::Quaternionf&) override {}
+    void pose(Timestamp t, const Eigen::Vector3f&, std::span<const Eigen::Quaternionf> joints,
+              std::uint32_t) override {
+        poses.push_back({t, std::vector<Eigen::Quaternionf>(joints.begin(), joints.end())});
+    }
+    void event(Timestamp t, firmware::cap::EventKind kind, int sensor, int,
+               std::string_view text) override {
+        events.push_back({t, kind, sensor, std::string(text)});
+    }
+    void metadata(Timestamp, std::string_view toml) override { metadataRecords.emplace_back(toml); }
+    void marker(Timestamp, std::string_view) override {}
+    std::vector<EventRec> reexpressions() const {
+        std::vector<EventRec> out;
+        for (const auto& e : events) {
+            if (e.kind == firmware::cap::EventKind::Calibrated && e.sensor >= 0) {
+                out.push_back(e);
+            }
+        }
+        return out;
+    }
+};
+
+// A first run without any sensor calibration (typical chips, hard iron up to 300 uT), the body
+// calibrated in the T-pose while the headings are free: once the walk has given the online
+// estimates their turns, the free headings are stepped to magnetic north and the body calibration
+// re-expressed, each recorded as a calibration event of the sensor with the new calibration's
+// metadata. The raw samples reprocessed (docs/reprocess.md) do the same at the same samples: the
+// same events and the same poses.
+TEST(BodyStage, ReExpressesAFreeHeadingsCalibrationAndAReprocessDoesTheSame) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    SimulatedClock clock(Timestamp{1s});
+    bs::ClipOptions o;
+    o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_131_01_start_walk_stop.bvh";
+    o.profile = bs::ErrorProfile::Typical;
+    o.seed = 1;
+    o.tposeHoldS = 4.0;
+    auto clip = bs::clipSources(o, clock.now());
+    ASSERT_TRUE(clip) << clip.error().message;
+    auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
+    ASSERT_TRUE(suit) << suit.error().message;
+
+    KeptRecords live;
+    firmware::FusionStage fusion(b, nullptr);
+    firmware::BodyStage::Options bo;
+    bo.calibrate = body::ReferencePoseKind::T;
+    firmware::BodyStage bodyStage(b, fusion, &live, clock, bo);
+    firmware::SourceRecording recording;
+    firmware::SteppedCapture capture(*suit, clock);
+    const Timestamp start = clock.now();
+    body::SegmentMask freeAtCalibration = 0;
+    capture.runUntil(start + 13700ms, [&](const firmware::SensorSample& s) {
+        firmware::SourceRecording::Item it;
+        it.type = firmware::cap::RecordType::RawSample;
+        it.t = s.sample.t;
+        it.sensor = s.sensor;
+        it.sample = s.sample;
+        recording.items.push_back(it);
+        ++recording.samples;
+        fusion.onSample(s);
+        bodyStage.onSample(s);
+        if (freeAtCalibration == 0) {
+            freeAtCalibration = bodyStage.tracker().freeAtCalibration();
+        }
+    });
+    ASSERT_TRUE(bodyStage.calibrated()) << bodyStage.calibrationError();
+    // Every sensor was free or unchecked at the calibration (none is corrected yet)...
+    EXPECT_GE(std::popcount(freeAtCalibration), 10);
+    // ... and some were stepped and re-expressed by the end.
+    const auto steps = live.reexpressions();
+    ASSERT_GE(steps.size(), 5U);
+    EXPECT_EQ(std::popcount(bodyStage.tracker().freeAtCalibration()),
+              std::popcount(freeAtCalibration) - static_cast<int>(steps.size()));
+    for (const auto& e : steps) {
+        EXPECT_EQ(fusion.headingStep(e.sensor).count, 1U) << e.text;
+        EXPECT_EQ(fusion.headingStep(e.sensor).t, e.t) << e.text;
+        EXPECT_NE(e.text.find("re-expressed"), std::string::npos) << e.text;
+    }
+    // A metadata record per calibration: the first and each re-expression.
+    ASSERT_EQ(live.metadataRecords.size(), steps.size() + 1);
+    // The first names each free heading's mounting as taken from the nominal heading (the
+    // T-pose: no measured one among them); each re-expression one fewer.
+    auto count = [](const std::string& text, const std::string& what) {
+        int n = 0;
+        for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) {
+            ++n;
+        }
+        return n;
+    };
+    for (std::size_t k = 0; k < live.metadataRecords.size(); ++k) {
+        const std::string& m = live.metadataRecords[k];
+        const int freeLeft = std::popcount(freeAtCalibration) - static_cast<int>(k);
+        EXPECT_EQ(count(m, "heading_free "), freeLeft) << m;
+        EXPECT_EQ(count(m, " nominal-heading"), freeLeft) << m;
+    }
+
+    firmware::ReprocessOptions ro;
+    ro.calibration.kind = firmware::CalibrationChoice::Kind::TPose;
+    ro.calibration.atS = {2.5};
+    KeptRecords again;
+    auto done = firmware::reprocess(b, recording, ro, again);
+    ASSERT_TRUE(done) << done.error().message;
+    const auto stepsAgain = again.reexpressions();
+    ASSERT_EQ(stepsAgain.size(), steps.size());
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+        EXPECT_EQ(stepsAgain[i].t, steps[i].t);
+        EXPECT_EQ(stepsAgain[i].sensor, steps[i].sensor);
+        EXPECT_EQ(stepsAgain[i].text, steps[i].text);
+    }
+    EXPECT_EQ(again.metadataRecords, live.metadataRecords);
+    ASSERT_EQ(again.poses.size(), live.poses.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < live.poses.size(); ++i) {
+        ASSERT_EQ(again.poses[i].t, live.poses[i].t);
+        for (std::size_t j = 0; j < live.poses[i].joints.size(); ++j) {
+            worst = std::max(worst, static_cast<double>(again.poses[i].joints[j].angularDistance(
+                                        live.poses[i].joints[j])));
+        }
+    }
+    EXPECT_LT(worst, 1e-3);
 }
 
 TEST(BodyStage, CalibratesInTheTPoseThenPosesAtTheOutputRate) {
