@@ -186,11 +186,18 @@ TEST_F(Reprocess, ACalibrationChosenAtAnotherTimeChangesThePoses) {
 TEST_F(Reprocess, AnotherPoseRateGivesThatManyPoses) {
     const std::string out = temp("rate.cap");
     fs::remove(out);
+    const std::string same = temp("rate60.cap");
+    fs::remove(same);
     const CliRun r = caphub("reprocess " + source_ + " -o " + out + " --pose-rate 30");
     ASSERT_EQ(r.exitCode, 0) << r.output;
-    const Contents a = contentsOf(source_);  // 60 Hz
+    // Against a reprocess at the recording's 60 Hz, not its live poses: how many of those the
+    // live capture solved depends on the machine's load when the recording was made.
+    const CliRun r60 = caphub("reprocess " + source_ + " -o " + same);
+    ASSERT_EQ(r60.exitCode, 0) << r60.output;
+    const Contents a = contentsOf(same);
     const Contents b = contentsOf(out);
-    EXPECT_NEAR(static_cast<double>(b.poses), static_cast<double>(a.poses) / 2, 3.0);
+    ASSERT_GT(a.poses, 60u);
+    EXPECT_NEAR(static_cast<double>(b.poses), static_cast<double>(a.poses) / 2, 1.0);
 }
 
 TEST_F(Reprocess, TheSmoothedRecordingHasEveryRecordAndInfoReadsIt) {
