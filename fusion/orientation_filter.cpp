@@ -1,5 +1,6 @@
 #include "fusion/orientation_filter.h"
 
+#include <array>
 #include <cmath>
 
 namespace caphub::fusion {
@@ -66,8 +67,10 @@ const char* invalidFilterParameter(const FilterParams& p) {
 //   measurement   z_k     = phi_k + n,           n ~ N(0, sigmaM^2)
 // The covariance recursion is iterated until the gain stops changing: the stationary Kalman
 // gain, which the filter then applies with no division on the per-sample path.
-SteadyGains steadyStateGains(double dtS, double angleNoiseRadRtHz, double biasDriftRadRtS,
-                             double measNoiseRad) {
+namespace {
+
+SteadyGains iterateRiccati(double dtS, double angleNoiseRadRtHz, double biasDriftRadRtS,
+                           double measNoiseRad) {
     const double q00 = angleNoiseRadRtHz * angleNoiseRadRtHz * dtS;
     const double q11 = biasDriftRadRtS * biasDriftRadRtS * dtS;
     const double r = measNoiseRad * measNoiseRad;
@@ -96,6 +99,33 @@ SteadyGains steadyStateGains(double dtS, double angleNoiseRadRtHz, double biasDr
             break;
         }
     }
+    return g;
+}
+
+}  // namespace
+
+// The iteration takes up to milliseconds where the bias drift is small against the measurement
+// noise, and every filter constructed computes two: `reprocess --smooth` builds dozens with the
+// same parameters and spent a third of its time here (docs/reprocess.md, "Speed"). The last few
+// arguments and their gains are kept, per thread; the gains are the same to the bit.
+SteadyGains steadyStateGains(double dtS, double angleNoiseRadRtHz, double biasDriftRadRtS,
+                             double measNoiseRad) {
+    struct Entry {
+        std::array<double, 4> args{};
+        SteadyGains gains;
+        bool used = false;
+    };
+    thread_local std::array<Entry, 8> cache;
+    thread_local std::size_t next = 0;
+    const std::array<double, 4> args{dtS, angleNoiseRadRtHz, biasDriftRadRtS, measNoiseRad};
+    for (const Entry& e : cache) {
+        if (e.used && e.args == args) {
+            return e.gains;
+        }
+    }
+    const SteadyGains g = iterateRiccati(dtS, angleNoiseRadRtHz, biasDriftRadRtS, measNoiseRad);
+    cache[next] = Entry{args, g, true};
+    next = (next + 1) % cache.size();
     return g;
 }
 
