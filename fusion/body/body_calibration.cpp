@@ -321,6 +321,12 @@ Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_
             const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
             return r.ec == std::errc() && r.ptr == t.data() + t.size() && std::isfinite(v);
         };
+        auto unknownSegment = [&](std::string_view key) {
+            return fail(
+                fmt::format("{}: unknown segment '{}': expected an H-Anim segment name "
+                            "such as l_upperarm",
+                            key, tok[1]));
+        };
         if (tok[0] == "method") {
             bool found = false;
             for (auto m : {CalibrationMethod::None, CalibrationMethod::TPose,
@@ -352,10 +358,7 @@ Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_
             }
             const auto seg = board::findSegment(tok[1]);
             if (!seg) {
-                return fail(
-                    fmt::format("mounting: unknown segment '{}': expected an H-Anim "
-                                "segment name such as l_upperarm",
-                                tok[1]));
+                return unknownSegment("mounting");
             }
             std::array<double, 4> q{};
             for (std::size_t k = 0; k < 4; ++k) {
@@ -376,10 +379,7 @@ Result<BodyCalibration> parseBodyCalibration(std::string_view text, std::string_
             }
             const auto seg = board::findSegment(tok[1]);
             if (!seg) {
-                return fail(
-                    fmt::format("heading_free: unknown segment '{}': expected an H-Anim "
-                                "segment name such as l_upperarm",
-                                tok[1]));
+                return unknownSegment("heading_free");
             }
             double turn = 0;
             if (!number(tok[2], turn)) {

@@ -138,6 +138,17 @@ double worstMountingError(const BodyCalibration& cal, const Suit& suit) {
 }
 
 // The pelvis' heading in the solved pose: its forward axis' angle about up from +Z.
+// Every joint of the full suit (a segment and its parent both measured) as in `expected`.
+void expectSameJoints(const Pose& solved, const Pose& expected) {
+    for (int i = 1; i < kSegmentCount; ++i) {
+        if (has(testing::kFullSuit, i) && has(testing::kFullSuit, parentOf(i))) {
+            const auto u = static_cast<std::size_t>(i);
+            EXPECT_LT(solved.qLocal[u].angularDistance(expected.qLocal[u]), kTolRad)
+                << board::segmentName(static_cast<Segment>(i));
+        }
+    }
+}
+
 double pelvisHeading(const Pose& p) {
     const Vec3d z = p.world(S::Pelvis) * Vec3d::UnitZ();
     return std::atan2(z.x(), z.z());
@@ -335,13 +346,7 @@ TEST(BodyTracker, HeadingResetTurnsTheWorldSoThatThePelvisFacesForward) {
     EXPECT_NEAR(tracker.calibration().headingRad, before, kTolRad);
     EXPECT_NEAR(pelvisHeading(tracker.pose()), 0, kTolRad);
     // The joints are as they were: the body turned as a whole.
-    for (int i = 1; i < kSegmentCount; ++i) {
-        if (has(testing::kFullSuit, i) && has(testing::kFullSuit, parentOf(i))) {
-            const auto u = static_cast<std::size_t>(i);
-            EXPECT_LT(tracker.pose().qLocal[u].angularDistance(turned.qLocal[u]), kTolRad)
-                << board::segmentName(static_cast<Segment>(i));
-        }
-    }
+    expectSameJoints(tracker.pose(), turned);
 }
 
 TEST(BodyTracker, ASensorOfflineMakesItsSegmentsInvalidUntilItReportsAgain) {
@@ -715,13 +720,7 @@ void realignSomeFree(bool twoPose) {
     EXPECT_NEAR(tracker.calibration().headingRad,
                 std::remainder(heading + pelvisHeading(after), 2 * kPi), kTolRad);
     // The joints are the pose's (the world turned as a whole).
-    for (int i = 1; i < kSegmentCount; ++i) {
-        if (has(testing::kFullSuit, i) && has(testing::kFullSuit, parentOf(i))) {
-            const auto u = static_cast<std::size_t>(i);
-            EXPECT_LT(tracker.pose().qLocal[u].angularDistance(after.qLocal[u]), kTolRad)
-                << board::segmentName(static_cast<Segment>(i));
-        }
-    }
+    expectSameJoints(tracker.pose(), after);
 }
 
 TEST(BodyTracker, RealigningSomeFreeHeadingsLeavesTheMagneticOnesMountings) {

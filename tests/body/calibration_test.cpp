@@ -26,6 +26,17 @@ std::array<Quatd, kSegmentCount> randomMountings(std::mt19937& rng) {
     return m;
 }
 
+// Each nominal mounting turned about a random axis by up to maxRad: straps as worn.
+std::array<Quatd, kSegmentCount> strapped(std::mt19937& rng,
+                                          const std::array<Quatd, kSegmentCount>& nominal,
+                                          double maxRad) {
+    std::array<Quatd, kSegmentCount> m;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+        m[i] = (testing::randomRotation(rng, maxRad) * nominal[i]).normalized();
+    }
+    return m;
+}
+
 double worstError(const BodyCalibration& cal, const std::array<Quatd, kSegmentCount>& truth,
                   SegmentMask mask) {
     double worst = 0;
@@ -223,13 +234,8 @@ void freeHeadingGetsTheNominalHeading(ReferencePoseKind pose) {
     std::mt19937 rng(31);
     std::uniform_real_distribution<double> anyTurn(-kPi, kPi);
     std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
-    std::array<Quatd, kSegmentCount> truth;
-    for (int i = 0; i < kSegmentCount; ++i) {
-        // A strap off by up to 20 deg about any axis (its vertical component included).
-        truth[static_cast<std::size_t>(i)] =
-            (testing::randomRotation(rng, 20 * kDeg) * nominal[static_cast<std::size_t>(i)])
-                .normalized();
-    }
+    // Straps off by up to 20 deg about any axis (their vertical components included).
+    const std::array<Quatd, kSegmentCount> truth = strapped(rng, nominal, 20 * kDeg);
     const double heading = 0.7;
     const SensorFrame magnetic =
         testing::sensorsFor(testing::referencePose(pose), truth, testing::kFullSuit, heading);
@@ -322,12 +328,7 @@ TEST(FreeHeadingCalibration, ATiltedStrapGivesTheTrueMountingAndUndoesTheOffset)
 TEST(FreeHeadingCalibration, TwoPoseArmsAreMeasuredAndTheirTurnFitted) {
     std::mt19937 rng(41);
     std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
-    std::array<Quatd, kSegmentCount> truth;
-    for (int i = 0; i < kSegmentCount; ++i) {
-        truth[static_cast<std::size_t>(i)] =
-            (testing::randomRotation(rng, 20 * kDeg) * nominal[static_cast<std::size_t>(i)])
-                .normalized();
-    }
+    const std::array<Quatd, kSegmentCount> truth = strapped(rng, nominal, 20 * kDeg);
     const SegmentMask free = bit(S::LForearm) | bit(S::RUpperarm) | bit(S::Pelvis);
     const double heading = 1.2;
     SensorFrame t = testing::sensorsFor(testing::referencePose(ReferencePoseKind::T), truth,

@@ -176,6 +176,16 @@ TEST(FusionStage, CountsTheRejectedSamplesPerSensorAndStaysFinite) {
     EXPECT_EQ(fusion.rejections(99).samples(), 0U);  // no such sensor
 }
 
+// The sensor's magnetometer rate (its output rate when the board gives none).
+double magOdrOf(const board::SensorConfig& c) {
+    return c.magOdrHz > 0 ? c.magOdrHz : c.achievedOdrHz;
+}
+
+// Every how many accelerometer/gyroscope samples the sensor's magnetometer reads one.
+int magEveryOf(const board::SensorConfig& c) {
+    return std::max(1, static_cast<int>(std::lround(c.achievedOdrHz / magOdrOf(c))));
+}
+
 // A sensor without a magnetometer calibration whose chip reads a 200 uT offset: its first field
 // does not look like the earth's, so its heading is the gyroscope's while it turns; once the
 // online estimate has seen enough turns it is magnetic again, with the offset subtracted, and
@@ -185,8 +195,7 @@ TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMa
     firmware::FusionStage fusion(b, nullptr);
     const int sensor = 4;
     const double odr = b.sensors[sensor].achievedOdrHz;
-    const double magOdr = b.sensors[sensor].magOdrHz > 0 ? b.sensors[sensor].magOdrHz : odr;
-    const int magEvery = std::max(1, static_cast<int>(std::lround(odr / magOdr)));
+    const int magEvery = magEveryOf(b.sensors[sensor]);
     const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
     const Eigen::Vector3d offset(180.0, -60.0, 70.0);
     Quatd truth(Eigen::AngleAxisd(120.0 * hal::kPi / 180.0, Eigen::Vector3d::UnitZ()));
@@ -247,8 +256,7 @@ TEST(FusionStage, StepsAFreeHeadingToMagneticNorthAndReportsTheAngle) {
     firmware::FusionStage fusion(b, nullptr);
     const int sensor = 6;
     const double odr = b.sensors[sensor].achievedOdrHz;
-    const double magOdr = b.sensors[sensor].magOdrHz > 0 ? b.sensors[sensor].magOdrHz : odr;
-    const int magEvery = std::max(1, static_cast<int>(std::lround(odr / magOdr)));
+    const int magEvery = magEveryOf(b.sensors[sensor]);
     const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
     const Eigen::Vector3d offset(-150.0, 90.0, 40.0);
     Quatd truth(Eigen::AngleAxisd(-75.0 * hal::kPi / 180.0, Eigen::Vector3d::UnitZ()));
@@ -306,7 +314,8 @@ TEST(FusionStage, StepsAFreeHeadingToMagneticNorthAndReportsTheAngle) {
     EXPECT_GT(std::abs(*expected), 30 * hal::kPi / 180);
     EXPECT_NEAR(std::remainder(step.angleRad - *expected, 2 * hal::kPi), 0.0, 2.0 * hal::kPi / 180);
     EXPECT_LT(errAtStepDeg, 3.0);
-    EXPECT_EQ(fusion.alignReadings(sensor), static_cast<std::uint32_t>(std::lround(2 * magOdr)));
+    EXPECT_EQ(fusion.alignReadings(sensor),
+              static_cast<std::uint32_t>(std::lround(2 * magOdrOf(b.sensors[sensor]))));
 }
 
 // What a reprocess and a live body stage write, kept to compare.
