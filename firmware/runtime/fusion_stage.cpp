@@ -163,9 +163,12 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         // disturbance, a new magnet) falls back to the gyroscope.
         const bool smallOffset = o.estimate.offsetUt.norm() < 0.1 * o.estimate.fieldNormUt;
         if (o.estimate.good && !(o.mode == MagMode::Raw && smallOffset)) {
-            if (o.mode == MagMode::Estimating) {
+            if (o.mode == MagMode::Estimating || o.mode == MagMode::Raw) {
                 // From a gyroscope-only heading to a magnetic one: the heading error is measured
-                // first (alignHeading), then corrected in one step.
+                // first (alignHeading), then corrected in one step. So from a raw one whose offset
+                // turned out large: its heading was as unknown as a free one (the body's
+                // calibration took it so, docs/body-calibration.md), and a step, unlike a blend,
+                // says by how much it was off.
                 if (!o.aligning) {
                     o.aligning = true;
                     o.sumSin = 0;
@@ -177,16 +180,18 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
             }
         } else if (o.mode == MagMode::Online && o.estimate.valid && !o.estimate.good) {
             o.mode = MagMode::Estimating;
-        } else if (o.mode == MagMode::Estimating && !o.estimate.good) {
+        } else if ((o.mode == MagMode::Estimating || o.mode == MagMode::Raw) && !o.estimate.good) {
             o.aligning = false;
         }
     }
-    if (o.mode == MagMode::Estimating && o.aligning) {
+    if ((o.mode == MagMode::Estimating || o.mode == MagMode::Raw) && o.aligning) {
         alignHeading(sensor, o, f, magUt, t);
     }
     switch (o.mode) {
         case MagMode::Raw:
-            feed(magUt);
+            if (!o.aligning) {
+                feed(magUt);  // (while its error is measured, the heading is the gyroscope's)
+            }
             return;
         case MagMode::Online:
             feed(magUt - o.estimate.offsetUt);

@@ -165,11 +165,17 @@ Result<BodyCalibration> calibrateOnePose(ReferencePoseKind pose, const SensorFra
         const auto u = static_cast<std::size_t>(i);
         const Quatd left =
             referenceOrientation(pose, static_cast<Segment>(i)).conjugate() * qWorldEnu;
-        if (has(options.freeHeading, i)) {
-            // The sensor's heading is unknown, its mounting nearly known: the turn about up that
-            // brings the mounting closest to the nominal one.
+        const bool free = has(options.freeHeading, i);
+        if (free || has(options.checkHeading, i)) {
+            // The sensor's heading is unknown (or unchecked), its mounting nearly known: the turn
+            // about up that brings the mounting closest to the nominal one. An unchecked heading
+            // that a strap could explain is taken as right, the mounting measured.
             const double turn =
                 closestHeadingTurn(left, frame.qEnuSensor[u], options.nominalMounting[u]);
+            if (!free && std::abs(turn) <= options.plausibleTurnRad) {
+                cal.mounting[u] = (left * frame.qEnuSensor[u]).normalized();
+                continue;
+            }
             cal.mounting[u] = (left * yawEnu(turn) * frame.qEnuSensor[u]).normalized();
             cal.freeHeading |= SegmentMask{1} << i;
             cal.nominalHeading |= SegmentMask{1} << i;
@@ -204,7 +210,11 @@ Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorF
     if (!t) {
         return t.error();
     }
-    auto n = calibrateOnePose(ReferencePoseKind::N, nPose, options, tNs);
+    // The unchecked headings are checked in the T-pose; the N-pose takes them as it found them.
+    CalibrationOptions nOptions = options;
+    nOptions.freeHeading |= t->freeHeading & options.checkHeading;
+    nOptions.checkHeading = 0;
+    auto n = calibrateOnePose(ReferencePoseKind::N, nPose, nOptions, tNs);
     if (!n) {
         return n.error();
     }
@@ -237,7 +247,7 @@ Result<BodyCalibration> calibrateTwoPose(const SensorFrame& tPose, const SensorF
                                      board::segmentName(s))};
         }
         cal.mounting[u] = triad(upN, upT, segUpN, segUpT);
-        if (has(options.freeHeading, i)) {
+        if (has(nOptions.freeHeading, i)) {
             // Measured whole from the two gravity directions: the free heading's turn is the one
             // that brings the T-pose's orientation onto it, not a nominal heading.
             cal.nominalHeading &= ~(SegmentMask{1} << i);

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -77,6 +78,18 @@ struct CalibrationOptions {
     // The segments whose sensors' headings are free (BodyCalibration::freeHeading): their
     // mountings take the heading about the vertical that is closest to the nominal mounting.
     SegmentMask freeHeading = 0;
+    // The segments whose sensors' headings are magnetic but unchecked (a magnetometer read raw,
+    // its offset unmeasured): each is checked against its strap. If the turn about the vertical
+    // that brings its mounting closest to the nominal one (closestHeadingTurn) is within
+    // plausibleTurnRad, the heading is taken as right and the mounting measured; otherwise the
+    // heading is wrong and the sensor is taken as free (freeHeading, nominalHeading).
+    SegmentMask checkHeading = 0;
+    // How far a strap can turn a sensor about the vertical. 25 deg: the virtual suit's straps
+    // (half-normal angle, scale 10 deg, capped at 30, about a uniform axis) turn a sensor about
+    // the vertical by more than 20 deg once in 160, by more than 25 once in 900 (drawn from
+    // that distribution), never by more than 30; 5 deg of the margin are for the pose held and
+    // the capture heading. docs/body-calibration.md, "Unchecked headings".
+    double plausibleTurnRad = 25.0 * std::numbers::pi / 180;
     CalibrationOptions() { nominalMounting.fill(Quatd::Identity()); }
 };
 

@@ -289,9 +289,19 @@ void BodyTracker::forget(std::size_t sensor) {
     }
     // A free heading starts afresh too: the calibration's orientations of the sensor are in a
     // frame that is gone, and no later measurement of the new one can re-express them.
-    if (calibrationInput_ && (calibrationInput_->free & bit(sensors_[sensor].segment)) != 0) {
-        calibrationInput_->free &= ~bit(sensors_[sensor].segment);
-        calibrationInput_->lost |= bit(sensors_[sensor].segment);
+    // An unchecked heading taken as right keeps its measured mounting (a raw heading is found
+    // anew from the same readings), but cannot be re-expressed either.
+    const SegmentMask seg = bit(sensors_[sensor].segment);
+    if (calibrationInput_) {
+        CalibrationInput& in = *calibrationInput_;
+        if (((in.free | in.uncheckedFree) & seg) != 0) {
+            in.lost |= seg;
+        } else if ((in.unchecked & seg) != 0) {
+            in.stale |= seg;
+        }
+        in.free &= ~seg;
+        in.unchecked &= ~seg;
+        in.uncheckedFree &= ~seg;
     }
     // Its turn was for the heading that is gone.
     headingTurn_[sensor] = 0;
@@ -357,10 +367,12 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
         for (auto& win : request_->windows) {
             win.sum[i] = left * win.sum[i];
             win.free[i] = false;
+            win.unchecked[i] = false;
         }
     }
     const SegmentMask seg = bit(sensors_[i].segment);
-    if (!calibrationInput_ || (calibrationInput_->free & seg) == 0) {
+    if (!calibrationInput_ ||
+        ((calibrationInput_->free | calibrationInput_->unchecked) & seg) == 0) {
         return events;
     }
     CalibrationInput in = *calibrationInput_;
@@ -369,6 +381,8 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
         q = (turn * q).normalized();
     }
     in.free &= ~seg;
+    in.unchecked &= ~seg;
+    in.uncheckedFree &= ~seg;
     Result<BodyCalibration> cal = computeCalibration(in, calibration_.tNs);
     if (!cal) {
         return events;  // it was computed from these orientations once: cannot fail now
@@ -395,11 +409,14 @@ Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& 
     // The capture heading from the sensors whose headings are corrected; failing any, from all
     // (a free heading is off by an angle of its own, an unchecked one by whatever its offset
     // makes it: neither is better than the other).
-    copt.headingFrom = ~(in.free | in.unchecked | in.lost);
+    copt.headingFrom = ~(in.free | in.unchecked | in.lost | in.stale);
     // A free heading's mounting: the one closest to the nominal about the vertical. A sensor
     // lost since keeps that mounting (still the best known), but no turn: its orientations are
-    // in a new frame that nothing relates to the one averaged.
-    copt.freeHeading = in.free | in.lost;
+    // in a new frame that nothing relates to the one averaged. An unchecked heading is checked
+    // against its strap by the first computation (a wrong one is taken as free); the
+    // re-expressions keep what it found.
+    copt.freeHeading = in.free | in.lost | in.uncheckedFree;
+    copt.checkHeading = in.checked ? 0 : in.unchecked;
     const auto pose =
         in.method == CalibrationMethod::TPose ? ReferencePoseKind::T : ReferencePoseKind::N;
     Result<BodyCalibration> cal = in.method == CalibrationMethod::TPlusN
@@ -556,6 +573,8 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
         return;
     }
     const bool first = !calibrated_;
+    in.uncheckedFree = cal->freeHeading & in.unchecked;
+    in.checked = true;
     in.headingRad = cal->headingRad;
     calibrationInput_ = in;
     calibration_ = *cal;

@@ -62,7 +62,10 @@ struct SensorUpdate {
     bool headingFree = false;
     // The heading is magnetic but from a magnetometer nothing has corrected (nor found right): a
     // calibration estimates the capture heading from the sensors whose headings are corrected
-    // (neither free nor unchecked) when there are any, else from all.
+    // (neither free nor unchecked) when there are any, else from all, and checks an unchecked
+    // heading against the sensor's strap: one no strap could explain is taken as unknown, like a
+    // free one (the nominal heading, a turn); either is re-expressed when the fusion stage
+    // measures and steps it (realignHeading).
     bool headingUnchecked = false;
 };
 
@@ -138,15 +141,17 @@ public:
     // that are magnetic now (and a heading reset done since kept). Call it before the sensor's
     // next update.
     TrackerEvents realignHeading(int sensor, double angleRad);
-    // A sensor whose heading is free when a calibration takes it gets the mounting closest to
-    // its nominal one (BodyCalibration::nominalHeading; T+N's arms: measured) and a turn about up
+    // A sensor whose heading is free (or unchecked and no strap could explain it: wrong) when a
+    // calibration takes it gets the mounting closest to its nominal one
+    // (BodyCalibration::nominalHeading; T+N's arms: measured) and a turn about up
     // (BodyCalibration::headingTurnRad) that its orientations are taken with from then on, until
     // its heading is realigned (the turn dropped, the calibration re-expressed) or its filter
-    // restarts.
-    // The segments whose sensors' headings were free when the calibration in use was taken and
-    // have not been realigned since (0 for the nominal mountings).
+    // restarts. An unchecked heading a strap could explain keeps its measured mounting, and is
+    // re-expressed when realigned. The segments whose sensors' headings were free or unchecked
+    // when the calibration in use was taken and have not been realigned since (0 for the nominal
+    // mountings).
     SegmentMask freeAtCalibration() const {
-        return calibrationInput_ ? calibrationInput_->free : 0;
+        return calibrationInput_ ? calibrationInput_->free | calibrationInput_->unchecked : 0;
     }
 
     // A sensor out (lost, silent) or back. While out its updates are ignored and its segment is
@@ -215,7 +220,15 @@ private:
         std::array<SensorFrame, 2> frames;  // the averaged orientations (T+N: the T-pose first)
         SegmentMask free = 0;               // segments whose sensors' headings were free
         SegmentMask unchecked = 0;          // ... or magnetic but unchecked
-        SegmentMask lost = 0;   // free, then the sensor's filter restarted: never re-expressed
+        // Of the unchecked: those whose headings no strap could explain, taken as free
+        // (CalibrationOptions::checkHeading), decided by the first computation (checked) and
+        // kept by the re-expressions.
+        SegmentMask uncheckedFree = 0;
+        bool checked = false;
+        SegmentMask lost = 0;  // free, then the sensor's filter restarted: never re-expressed
+        // Unchecked and taken as right, then the sensor's filter restarted: its measured mounting
+        // kept, never re-expressed, not a source of the capture heading.
+        SegmentMask stale = 0;
         double headingRad = 0;  // the capture heading the calibration estimated
     };
     struct Request {

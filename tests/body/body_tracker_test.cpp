@@ -515,6 +515,7 @@ TEST(BodyTracker, AFailedCalibrationSaysWhyAndKeepsTheOneInUse) {
 struct FreeHeadings {
     std::vector<double> offsetRad;  // per tracked sensor
     std::vector<bool> free;
+    std::vector<bool> unchecked;  // of the free ones: flagged unchecked (raw magnetic) instead
 
     void feed(BodyTracker& tracker, const Suit& suit, Timestamp t, const Pose& pose,
               double headingRad, std::vector<TrackerEvents>& events) const {
@@ -530,7 +531,8 @@ struct FreeHeadings {
             u.t = t;
             u.qEnuSensor = q.normalized().cast<float>();
             u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f);
-            u.headingFree = free[i];
+            u.headingUnchecked = free[i] && i < unchecked.size() && unchecked[i];
+            u.headingFree = free[i] && !u.headingUnchecked;
             events.push_back(tracker.update(u));
         }
     }
@@ -780,6 +782,93 @@ TEST(BodyTracker, AFreeSensorRestartedKeepsItsNominalHeadingMountingWithoutATurn
     EXPECT_EQ(cal.headingTurnRad[seg], 0.0);
     EXPECT_FALSE(has(cal.freeHeading, idx(S::RHand)));
     EXPECT_LT(worstMountingError(cal, suit), kTolRad);
+}
+
+// An unchecked heading (a magnetometer read raw, its offset unmeasured) 130 deg off is one no
+// strap explains: as unknown at the calibration as a free one (the nominal heading and a turn),
+// then a re-expression when the fusion stage measures and steps it.
+TEST(BodyTracker, AWrongUncheckedHeadingIsTakenAsUnknownLikeAFreeOne) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    h.unchecked.assign(suit.sensors.size(), false);
+    const auto calf = static_cast<std::size_t>(suit.sensor(S::RCalf));
+    h.offsetRad[calf] = 130 * kDeg;
+    h.free[calf] = true;
+    h.unchecked[calf] = true;
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    std::mt19937 rng(23);
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const Pose after = testing::randomPose(rng, 40 * kDeg);
+    const auto seg = static_cast<std::size_t>(idx(S::RCalf));
+    for (int k = 0; k < 400; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(2500ms)) {
+            EXPECT_EQ(tracker.freeAtCalibration(), bit(S::RCalf));
+            EXPECT_TRUE(has(tracker.calibration().nominalHeading, idx(S::RCalf)));
+            EXPECT_NEAR(
+                std::remainder(tracker.calibration().headingTurnRad[seg] - 130 * kDeg, 2 * kPi),
+                0.0, kTolRad);
+            EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
+            EXPECT_TRUE(
+                tracker.realignHeading(static_cast<int>(calf), h.offsetRad[calf]).reexpressed);
+            h.free[calf] = false;
+        }
+        h.feed(tracker, suit, t, t < at(1500ms) ? tpose : after, -60 * kDeg, events);
+        solveDue(tracker, t);
+    }
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_EQ(tracker.calibration().freeHeading, 0U);
+    EXPECT_EQ(tracker.calibration().headingTurnRad[seg], 0.0);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
+}
+
+// An unchecked heading 12 deg off is one a strap could explain: taken as right, its mounting
+// measured (and off by those 12 deg), no turn; when the fusion stage measures and steps it, the
+// calibration is re-expressed for it as for a free one, and the mounting comes out true.
+TEST(BodyTracker, APlausibleUncheckedHeadingIsMeasuredThenReexpressed) {
+    const Suit suit;
+    BodyTrackerOptions o;
+    o.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    FreeHeadings h;
+    h.offsetRad.assign(suit.sensors.size(), 0);
+    h.free.assign(suit.sensors.size(), false);
+    h.unchecked.assign(suit.sensors.size(), false);
+    const auto calf = static_cast<std::size_t>(suit.sensor(S::RCalf));
+    h.offsetRad[calf] = 12 * kDeg;
+    h.free[calf] = true;
+    h.unchecked[calf] = true;
+    tracker.startCalibration(ReferencePoseKind::T, at(0s));
+    std::vector<TrackerEvents> events;
+    std::mt19937 rng(29);
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const Pose after = testing::randomPose(rng, 40 * kDeg);
+    const auto seg = static_cast<std::size_t>(idx(S::RCalf));
+    for (int k = 0; k < 400; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(2500ms)) {
+            EXPECT_EQ(tracker.freeAtCalibration(), bit(S::RCalf));
+            EXPECT_EQ(tracker.calibration().freeHeading, 0U);
+            EXPECT_EQ(tracker.calibration().headingTurnRad[seg], 0.0);
+            EXPECT_GT(worstMountingError(tracker.calibration(), suit), 8 * kDeg);
+            EXPECT_TRUE(
+                tracker.realignHeading(static_cast<int>(calf), h.offsetRad[calf]).reexpressed);
+            h.free[calf] = false;
+        }
+        h.feed(tracker, suit, t, t < at(1500ms) ? tpose : after, -60 * kDeg, events);
+        solveDue(tracker, t);
+    }
+    EXPECT_EQ(tracker.freeAtCalibration(), 0U);
+    EXPECT_EQ(tracker.calibration().freeHeading, 0U);
+    EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
+    EXPECT_LT(worstSegmentError(tracker.pose(), after), kTolRad);
 }
 
 // A heading realigned while the calibration is still averaging: the sums turn with it, and the

@@ -322,6 +322,55 @@ TEST(FreeHeadingCalibration, ATiltedStrapGivesTheTrueMountingAndUndoesTheOffset)
     EXPECT_NEAR(std::remainder(cal->headingTurnRad[idx(S::LThigh)] + offset, 2 * kPi), 0.0, 1e-9);
 }
 
+// An unchecked (raw) heading is checked against the strap: one turned 60 deg off is wrong and
+// taken as free (the nominal heading, its turn kept); one right with a strap turned 10 deg about
+// the vertical keeps its measured mounting exactly. The capture heading is known, as when it
+// comes from the corrected sensors.
+TEST(FreeHeadingCalibration, AnUncheckedHeadingNoStrapExplainsIsTakenAsFree) {
+    std::mt19937 rng(43);
+    std::array<Quatd, kSegmentCount> nominal = randomMountings(rng);
+    std::array<Quatd, kSegmentCount> truth = nominal;
+    const Vec3d up = segmentUp(ReferencePoseKind::T, S::LThigh);
+    // Both straps turned 10 deg about the segment's vertical (and a little tilt for the wrong one).
+    truth[idx(S::LThigh)] =
+        (fromAxisAngle<double>(up, 10 * kDeg) * nominal[idx(S::LThigh)]).normalized();
+    truth[idx(S::RCalf)] =
+        (fromAxisAngle<double>(Vec3d(0.3, 1, 0).normalized(), 10 * kDeg) * nominal[idx(S::RCalf)])
+            .normalized();
+    const double heading = -0.4;
+    const SensorFrame magnetic = testing::sensorsFor(testing::referencePose(ReferencePoseKind::T),
+                                                     truth, testing::kFullSuit, heading);
+    const SensorFrame f = withHeadingError(magnetic, S::RCalf, 60 * kDeg);
+    CalibrationOptions o;
+    o.nominalMounting = nominal;
+    o.headingRad = heading;
+    const CalibrationOptions plainOptions = o;
+    o.checkHeading = bit(S::LThigh) | bit(S::RCalf);
+    auto cal = calibrateOnePose(ReferencePoseKind::T, f, o);
+    auto plain = calibrateOnePose(ReferencePoseKind::T, f, plainOptions);
+    ASSERT_TRUE(cal.ok()) << cal.error().message;
+    ASSERT_TRUE(plain.ok());
+    EXPECT_EQ(cal->freeHeading, bit(S::RCalf));
+    EXPECT_EQ(cal->nominalHeading, bit(S::RCalf));
+    // The right one: measured, the same numbers as with no check, the true mounting, no turn.
+    EXPECT_EQ(cal->mounting[idx(S::LThigh)].coeffs(), plain->mounting[idx(S::LThigh)].coeffs());
+    EXPECT_LT(angleBetween(cal->mounting[idx(S::LThigh)], truth[idx(S::LThigh)]), 1e-9);
+    EXPECT_EQ(cal->headingTurnRad[idx(S::LThigh)], 0.0);
+    // The wrong one: as a free heading (the nominal heading about the vertical, gravity's rest),
+    // its turn undoing the 60 deg less the strap's own turn about the vertical.
+    const Quatd& m = cal->mounting[idx(S::RCalf)];
+    EXPECT_LT(angleBetween(m, nominalHeadingMounting(truth[idx(S::RCalf)], nominal[idx(S::RCalf)],
+                                                     segmentUp(ReferencePoseKind::T, S::RCalf))),
+              1e-9);
+    EXPECT_GT(angleBetween(plain->mounting[idx(S::RCalf)], truth[idx(S::RCalf)]), 50 * kDeg);
+    EXPECT_NEAR(cal->headingTurnRad[idx(S::RCalf)], -60 * kDeg, 11 * kDeg);
+    // Past the bound the same right heading is not plausible any more.
+    o.plausibleTurnRad = 5 * kDeg;
+    auto strict = calibrateOnePose(ReferencePoseKind::T, f, o);
+    ASSERT_TRUE(strict.ok());
+    EXPECT_EQ(strict->freeHeading, bit(S::LThigh) | bit(S::RCalf));
+}
+
 // T+N measures an arm's mounting whole from two gravity directions: a free heading changes
 // nothing of it (mode measured), and its turn is fitted to it; the trunk's free sensors take
 // the nominal heading.
