@@ -65,8 +65,9 @@ void BodyStage::onSample(const SensorSample& s) {
         }
     }
     if (s.sensor >= 0 && static_cast<std::size_t>(s.sensor) < headingSteps_.size()) {
-        // The sensor's filter turned its free (gyroscope-only) heading to magnetic north: what
-        // the tracker holds of it, and a calibration that took it free, turn with it.
+        // The sensor's filter turned its heading (gyroscope-only, or an unchecked raw one) to
+        // magnetic north: what the tracker holds of it, and a calibration that took it, turn
+        // with it.
         const FusionStage::HeadingStep& step = fusion_.headingStep(s.sensor);
         auto& seen = headingSteps_[static_cast<std::size_t>(s.sensor)];
         if (step.count != seen) {
@@ -170,8 +171,8 @@ void BodyStage::onEvent(const RuntimeEvent& e) {
 void BodyStage::recordReexpression(Timestamp t, int sensor, double angleRad) {
     const body::BodyCalibration& cal = tracker_.calibration();
     const std::string what = fmt::format(
-        "body calibration re-expressed: {}'s heading was the gyroscope's at the calibration, now "
-        "magnetic (turned {:.1f} deg); capture heading {:.1f} deg",
+        "body calibration re-expressed: {}'s heading was not yet magnetic at the calibration (the "
+        "gyroscope's or an unchecked one), now is (turned {:.1f} deg); capture heading {:.1f} deg",
         sensorNames_[static_cast<std::size_t>(sensor)], angleRad * 180 / std::numbers::pi,
         cal.headingRad * 180 / std::numbers::pi);
     log::logger(log::Category::Body).debug("{}", what);
