@@ -148,6 +148,7 @@ Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
         fp[1] = ball;
         fp[2] = ball + 0.4 * horiz;  // toe tip
     }
+    setCentresOfMass(d);
     return d;
 }
 

@@ -158,6 +158,29 @@ Segment endEffectorSegment(EndEffector e) {
     return kSeg[static_cast<std::size_t>(e)];
 }
 
+void setCentresOfMass(Dimensions& d) {
+    auto com = [&](Segment s, const Vec3d& v) {
+        d.centreOfMassM[static_cast<std::size_t>(idx(s))] = v;
+    };
+    auto at = [&](Segment child) { return d.offsetM[static_cast<std::size_t>(idx(child))]; };
+    com(S::Pelvis, 0.895 * at(S::L5));  // 0.105 from L4-L5 towards the trochanters
+    com(S::L5, 0.56 * at(S::T12));      // 0.44 from T12-L1
+    com(S::T12, 0.18 * at(S::C7));      // 0.82 from C7-T1
+    com(S::Skull, Vec3d::Zero());       // head and neck: at the ear canal (the skullbase)
+    com(S::LUpperarm, 0.436 * at(S::LForearm));
+    com(S::RUpperarm, 0.436 * at(S::RForearm));
+    com(S::LForearm, 0.430 * at(S::LHand));
+    com(S::RForearm, 0.430 * at(S::RHand));
+    com(S::LHand, 0.506 * d.endSiteM[static_cast<std::size_t>(EndEffector::LHand)]);
+    com(S::RHand, 0.506 * d.endSiteM[static_cast<std::size_t>(EndEffector::RHand)]);
+    com(S::LThigh, 0.433 * at(S::LCalf));
+    com(S::RThigh, 0.433 * at(S::RCalf));
+    com(S::LCalf, 0.433 * at(S::LHindfoot));
+    com(S::RCalf, 0.433 * at(S::RHindfoot));
+    com(S::LHindfoot, 0.5 * at(S::LMiddistal));
+    com(S::RHindfoot, 0.5 * at(S::RMiddistal));
+}
+
 Result<Dimensions> dimensionsFromSubject(const board::SubjectConfig& subject) {
     const double h = subject.heightM;
     if (!(h >= 0.5 && h <= 2.5)) {
@@ -289,33 +312,17 @@ Result<Dimensions> dimensionsFromSubject(const board::SubjectConfig& subject) {
         }
     }
 
+    for (const MassRow& r : kMass) {
+        d.massFraction[static_cast<std::size_t>(idx(r.s))] = r.fraction;
+    }
+    d.massFraction[static_cast<std::size_t>(idx(S::RHindfoot))] = kRightFootMass;
     if (subject.massKg) {
         for (const MassRow& r : kMass) {
             d.massKg[static_cast<std::size_t>(idx(r.s))] = r.fraction * *subject.massKg;
         }
         d.massKg[static_cast<std::size_t>(idx(S::RHindfoot))] = kRightFootMass * *subject.massKg;
     }
-    // Centres of mass (Dempster via Winter), along each bone from its proximal joint.
-    auto com = [&](Segment s, const Vec3d& v) {
-        d.centreOfMassM[static_cast<std::size_t>(idx(s))] = v;
-    };
-    auto at = [&](Segment child) { return d.offsetM[static_cast<std::size_t>(idx(child))]; };
-    com(S::Pelvis, 0.895 * at(S::L5));  // 0.105 from L4-L5 towards the trochanters
-    com(S::L5, 0.56 * at(S::T12));      // 0.44 from T12-L1
-    com(S::T12, 0.18 * at(S::C7));      // 0.82 from C7-T1
-    com(S::Skull, Vec3d::Zero());       // head and neck: at the ear canal (the skullbase)
-    com(S::LUpperarm, 0.436 * at(S::LForearm));
-    com(S::RUpperarm, 0.436 * at(S::RForearm));
-    com(S::LForearm, 0.430 * at(S::LHand));
-    com(S::RForearm, 0.430 * at(S::RHand));
-    com(S::LHand, 0.506 * d.endSiteM[static_cast<std::size_t>(EndEffector::LHand)]);
-    com(S::RHand, 0.506 * d.endSiteM[static_cast<std::size_t>(EndEffector::RHand)]);
-    com(S::LThigh, 0.433 * at(S::LCalf));
-    com(S::RThigh, 0.433 * at(S::RCalf));
-    com(S::LCalf, 0.433 * at(S::LHindfoot));
-    com(S::RCalf, 0.433 * at(S::RHindfoot));
-    com(S::LHindfoot, 0.5 * at(S::LMiddistal));
-    com(S::RHindfoot, 0.5 * at(S::RMiddistal));
+    setCentresOfMass(d);
     return d;
 }
 

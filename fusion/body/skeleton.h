@@ -118,6 +118,9 @@ struct Dimensions {
     std::array<Vec3d, kFootPointCount> leftFootPointM{};   // heel, ball, toe tip: from l_hindfoot
     std::array<Vec3d, kFootPointCount> rightFootPointM{};  // from r_hindfoot
     std::array<double, kSegmentCount> massKg{};
+    // Each segment's share of the body's mass (sums to 1), known without the subject's mass:
+    // where the whole body's centre of mass is (a jump's flight).
+    std::array<double, kSegmentCount> massFraction{};
     std::array<Vec3d, kSegmentCount> centreOfMassM{};  // segment frame
 };
 
@@ -126,6 +129,10 @@ struct Dimensions {
 // lengths from the suit file replacing the derived ones. Errors for a height outside
 // 0.5-2.5 m, a mass outside 10-400 kg, or a measured length outside 0.01-1.5 m.
 Result<Dimensions> dimensionsFromSubject(const board::SubjectConfig& subject);
+
+// Each segment's centre of mass (Dempster via Winter: along the bone from its proximal joint)
+// from the dimensions' bones: again after the bones change (a skeleton measured from a clip).
+void setCentresOfMass(Dimensions& d);
 
 // The segment length a set of dimensions implies (the distance to the distal joint or end
 // site along the chain's main child).
