@@ -29,6 +29,19 @@ void footState(const Dimensions& d, const Pose& pose, const ChainJacobian& left,
     }
 }
 
+Vec3d centreOfMassOffsetM(const Dimensions& d, const Pose& pose) {
+    Vec3d sum = Vec3d::Zero();
+    double total = 0;
+    for (std::size_t i = 0; i < static_cast<std::size_t>(kSegmentCount); ++i) {
+        const double f = d.massFraction[i];
+        if (f > 0) {
+            sum += f * (pose.positionM[i] + pose.qWorld[i] * d.centreOfMassM[i]);
+            total += f;
+        }
+    }
+    return total > 0 ? Vec3d(sum / total - pose.positionM[0]) : Vec3d::Zero();
+}
+
 void footState(const Dimensions& d, const Pose& pose, const JointRates& rates, FootState& out) {
     ChainJacobian left;
     ChainJacobian right;
@@ -62,6 +75,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     point_ = lowestIndex;
     freeFallCount_ = 0;
     stanceChanges_ = 0;
+    comHistoryCount_ = 0;
     for (auto& p : pose.positionM) {
         p += root_ - old;
     }
@@ -87,13 +101,19 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     }
 
     const auto& force = rootSpecificForceMps2;
-    freeFallCount_ = force && force->norm() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
+    // Free fall: the vertical specific force is about zero. Not its whole size: in the air a
+    // pelvis sensor still reads several m/s^2 across (the pelvis turns about the centre of mass
+    // as the legs tuck and swing), which no support gives.
+    freeFallCount_ = force && force->y() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
+    const Vec3d comOffset = centreOfMassOffsetM(d, pose);
     if (freeFallCount_ == 1) {
         // The take-off was during this frame, so the root's state at its start (the feet, now
         // unloaded, stop carrying the root, and they rarely leave the floor at a frame's start).
         takeoffVelocity_ = fusedVelocity_;
         takeoffRoot_ = root_;
         freeFallS_ = 0;
+        takeoffComVelocity_ = takeoffHorizontalComVelocity();
+        takeoffCom_ = comHistoryCount_ > 0 ? comHistory_[comHistoryHead_].positionM : root_;
     }
     // Flight starts once per free fall: a landing while the accelerometer still reads free fall
     // (a take-off velocity a little low) stays landed. It starts where the ballistic path from
@@ -105,13 +125,22 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         const Vec3d g(0, options_.gravityMps2, 0);
         velocity_ = takeoffVelocity_ - g * freeFallS_;
         root_ = takeoffRoot_ + (takeoffVelocity_ - 0.5 * g * freeFallS_) * freeFallS_;
+        com_ = takeoffCom_ + takeoffComVelocity_ * freeFallS_;
     }
 
     Vec3d next = root_;
     if (phase_ == ContactPhase::Flight) {
-        // Exact for constant gravity: the path is a parabola.
-        next = root_ + velocity_ * dtS;
-        next.y() -= 0.5 * options_.gravityMps2 * dtS * dtS;
+        // Exact for constant gravity: the path is a parabola. Horizontally the centre of mass
+        // keeps its take-off velocity and the root is where the body's shape puts it from
+        // there; vertically the root flies (its take-off velocity is the pelvis sensor's).
+        com_ += takeoffComVelocity_ * dtS;
+        next.x() = com_.x() - comOffset.x();
+        next.z() = com_.z() - comOffset.z();
+        next.y() = root_.y() + velocity_.y() * dtS - 0.5 * options_.gravityMps2 * dtS * dtS;
+        if (dtS > 0) {
+            velocity_.x() = (next.x() - root_.x()) / dtS;
+            velocity_.z() = (next.z() - root_.z()) / dtS;
+        }
         velocity_.y() -= options_.gravityMps2 * dtS;
         if (next.y() + minY <= floorYM && velocity_.y() <= 0) {
             // Landing: the lowest foot point touches the floor and becomes the anchor.
@@ -193,6 +222,13 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         fusedVelocity_ = velocity_;
     }
     root_ = next;
+    if (phase_ == ContactPhase::Flight) {
+        comHistoryCount_ = 0;
+    } else {
+        comHistoryHead_ = (comHistoryHead_ + 1) % kComHistory;
+        comHistory_[comHistoryHead_] = ComSample{root_ + comOffset, dtS};
+        comHistoryCount_ = std::min(comHistoryCount_ + 1, kComHistory);
+    }
     if (freeFallCount_ > 0) {
         freeFallS_ += dtS;
     }
@@ -200,6 +236,30 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     for (auto& p : pose.positionM) {
         p += shift;
     }
+}
+
+Vec3d RootTracker::takeoffHorizontalComVelocity() const {
+    // The mean over the window: the centre of mass' way from the frame that starts it to the
+    // latest one in stance. Too short a stance for a frame's difference: the root's velocity.
+    auto back = [&](std::size_t k) -> const ComSample& {
+        return comHistory_[(comHistoryHead_ + kComHistory - k) % kComHistory];
+    };
+    double spanS = 0;
+    std::size_t k = 1;
+    for (; k < comHistoryCount_; ++k) {
+        spanS += back(k - 1).dtS;
+        if (spanS >= options_.takeoffWindowS - 1e-9) {
+            break;
+        }
+    }
+    if (k >= comHistoryCount_) {
+        --k;
+    }
+    if (k == 0 || spanS <= 0) {
+        return Vec3d(fusedVelocity_.x(), 0, fusedVelocity_.z());
+    }
+    const Vec3d v = (back(0).positionM - back(k).positionM) / spanS;
+    return Vec3d(v.x(), 0, v.z());
 }
 
 }  // namespace caphub::body

@@ -22,14 +22,21 @@ struct ContactOptions {
     // Another point takes over when its predicted speed is below the anchored one's by this
     // (m/s): hysteresis against chatter between points that are both still.
     double switchMarginMps = 0.05;
-    // Flight starts when the root's measured specific force (|a - g|, m/s^2) stays below this
-    // for flightFrames frames; it ends when a foot reaches the floor.
+    // Flight starts when the vertical component of the root's measured specific force (a - g,
+    // m/s^2) stays below this for flightFrames frames; it ends when a foot reaches the floor.
     double freeFallMps2 = 3.0;
     int flightFrames = 2;
     // The take-off velocity: the root's velocity from the contacts, complemented by the pelvis
     // accelerometer with this time constant (s). At the end of a push-off the feet leave the
     // floor gradually and the contacts no longer see the root's speed; the accelerometer does.
     double takeoffTimeConstantS = 0.3;
+    // In flight the whole body's centre of mass flies the parabola, and the root moves about it
+    // as the body's shape changes (a hop's root swings forward and back while the centre of mass
+    // hardly moves). Its horizontal velocity at take-off: the centre of mass' mean over this
+    // last stretch of the stance before it (s). In a push-off the floor pushes mostly upwards,
+    // so the horizontal velocity changes little over it, and a mean over frames does not take
+    // one frame's finite difference of a fast-changing shape.
+    double takeoffWindowS = 0.1;
     double gravityMps2 = 9.81;
 };
 
@@ -41,6 +48,10 @@ struct FootState {
     std::array<Vec3d, 6> pointM{};  // left heel, ball, toe; right heel, ball, toe
     std::array<Vec3d, 6> velocityMps{};
 };
+
+// Where the whole body's centre of mass is relative to the root, in the pose's world frame (the
+// segments' mass fractions and centres of mass; Dimensions).
+Vec3d centreOfMassOffsetM(const Dimensions& d, const Pose& pose);
 
 // The feet's own sensors by dead reckoning (fusion/body/foot_inertial.h), left then right: where
 // each sits on its hindfoot (segment frame) and, when valid (integrated from a still instant not
@@ -80,11 +91,28 @@ public:
     int stanceChanges() const { return stanceChanges_; }
 
 private:
+    Vec3d takeoffHorizontalComVelocity() const;
+
     ContactOptions options_;
     Vec3d root_ = Vec3d::Zero();
     Vec3d velocity_ = Vec3d::Zero();
     Vec3d takeoffVelocity_ = Vec3d::Zero();
     Vec3d takeoffRoot_ = Vec3d::Zero();     // where the root was when the free fall began
+    // The centre of mass, horizontally (x, z; y unused): at the take-off, its velocity then, and
+    // where it is in flight.
+    Vec3d takeoffCom_ = Vec3d::Zero();
+    Vec3d takeoffComVelocity_ = Vec3d::Zero();
+    Vec3d com_ = Vec3d::Zero();
+    // The centre of mass at the end of the latest frames in stance (world) and their durations,
+    // a ring (the newest at comHistoryHead_): the take-off's horizontal velocity.
+    struct ComSample {
+        Vec3d positionM = Vec3d::Zero();
+        double dtS = 0;
+    };
+    static constexpr std::size_t kComHistory = 32;
+    std::array<ComSample, kComHistory> comHistory_{};
+    std::size_t comHistoryHead_ = 0;
+    std::size_t comHistoryCount_ = 0;
     double freeFallS_ = 0;                  // since then
     Vec3d fusedVelocity_ = Vec3d::Zero();   // contacts and pelvis accelerometer, for take-off
     Vec3d smoothVelocity_ = Vec3d::Zero();  // low-passed root velocity, for the predictions

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -212,6 +213,58 @@ TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
         lowest = std::min(lowest, p.y());
     }
     EXPECT_NEAR(lowest + s.pose().positionM[0].y(), 0, 1e-9);
+}
+
+// In the air the whole body's centre of mass flies: horizontally at a constant velocity, however
+// the body bends; the root moves about it. The pelvis reads a sideways specific force in the air
+// (it turns about the centre of mass), which must not keep the flight from being seen.
+TEST(RootTracker, InFlightTheCentreOfMassKeepsItsVelocityAndTheRootMovesAboutIt) {
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    auto crouch = [](double a, double leanRad) {
+        Pose p;
+        p.qLocal[idx(S::L5)] = Quatd(Eigen::AngleAxisd(leanRad, Vec3d::UnitX()));
+        for (S t : {S::LThigh, S::RThigh}) {
+            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitX()));
+        }
+        for (S c : {S::LCalf, S::RCalf}) {
+            p.qLocal[idx(c)] = Quatd(Eigen::AngleAxisd(2 * a, Vec3d::UnitX()));
+        }
+        for (S f : {S::LHindfoot, S::RHindfoot}) {
+            p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitX()));
+        }
+        return p;
+    };
+    for (int k = 0; k <= 20; ++k) {
+        s.solve(frameOf(crouch((60 - 40 * k / 20.0) * kDeg, 0)), 0.01, Vec3d(0, 9.81, 0));
+    }
+    ASSERT_NE(s.rootTracker().phase(), ContactPhase::Flight);
+    auto com = [&] {
+        const Vec3d c = s.pose().positionM[0] + centreOfMassOffsetM(d, s.pose());
+        return Vec3d(c.x(), 0, c.z());
+    };
+    // In the air the trunk leans 30 deg: the centre of mass moves within the body, so the root
+    // must move the other way for it to keep its path.
+    std::vector<Vec3d> comPath;
+    std::vector<Vec3d> rootPath;
+    for (int k = 1; k <= 15; ++k) {
+        s.solve(frameOf(crouch(20 * kDeg, 2.0 * k * kDeg)), 0.01, Vec3d(3.0, 0.2, -2.0));
+        if (s.rootTracker().phase() == ContactPhase::Flight) {
+            comPath.push_back(com());
+            const Vec3d& r = s.pose().positionM[0];
+            rootPath.emplace_back(r.x(), 0, r.z());
+        }
+    }
+    ASSERT_GE(comPath.size(), 10U);
+    const Vec3d v = (comPath[1] - comPath[0]) / 0.01;
+    for (std::size_t k = 2; k < comPath.size(); ++k) {
+        const Vec3d expected = comPath[0] + v * (0.01 * static_cast<double>(k));
+        EXPECT_NEAR((comPath[k] - expected).norm(), 0, 1e-9) << "frame " << k;
+    }
+    // The root did not keep a constant velocity: it moved back as the trunk leaned forward.
+    const Vec3d rootMoved = rootPath.back() - rootPath.front();
+    const Vec3d comMoved = comPath.back() - comPath.front();
+    EXPECT_GT((rootMoved - comMoved).norm(), 0.02);
 }
 
 }  // namespace
