@@ -97,7 +97,7 @@ private:
     Vec3d root_ = Vec3d::Zero();
     Vec3d velocity_ = Vec3d::Zero();
     Vec3d takeoffVelocity_ = Vec3d::Zero();
-    Vec3d takeoffRoot_ = Vec3d::Zero();     // where the root was when the free fall began
+    Vec3d takeoffRoot_ = Vec3d::Zero();  // where the root was when the free fall began
     // The centre of mass, horizontally (x, z; y unused): at the take-off, its velocity then, and
     // where it is in flight.
     Vec3d takeoffCom_ = Vec3d::Zero();
