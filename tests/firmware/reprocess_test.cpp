@@ -90,20 +90,24 @@ Contents contentsOf(const std::string& path) {
 }
 
 // One recording of the virtual suit (T-pose lead-in, then its walk), made once for the suite.
+// Each test checks that it was made: a fatal failure in SetUpTestSuite itself would only mark the
+// tests skipped, and a broken recording must fail them.
 class Reprocess : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
         source_ = temp("source.cap");
         fs::remove(source_);
-        const CliRun r = caphub(
+        sourceRun_ = caphub(
             "run --board sim-suit --duration 7 --speed 8 --calibrate tpose "
             "--no-preview --no-stream --record " +
             source_);
-        ASSERT_EQ(r.exitCode, 0) << r.output;
     }
+    void SetUp() override { ASSERT_EQ(sourceRun_.exitCode, 0) << sourceRun_.output; }
     static std::string source_;
+    static CliRun sourceRun_;
 };
 std::string Reprocess::source_;
+CliRun Reprocess::sourceRun_;
 
 TEST_F(Reprocess, ARecordingOfTheVirtualSuitReprocessesAndInfoAndExportReadTheResult) {
     const std::string out = temp("out.cap");
