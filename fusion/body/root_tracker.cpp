@@ -10,6 +10,12 @@ namespace {
 
 using S = Segment;
 
+// Where foot f's sensor is on a pose (relative to the root while the pose's root is at the
+// origin).
+Vec3d footSensorOnPose(const Pose& pose, const FootSensorMotion& feet, std::size_t f) {
+    return pointOnSegment(pose, idx(f == 0 ? S::LHindfoot : S::RHindfoot), feet.onFootM[f]);
+}
+
 }  // namespace
 
 void footState(const Dimensions& d, const Pose& pose, const ChainJacobian& left,
@@ -76,6 +82,8 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     freeFallCount_ = 0;
     stanceChanges_ = 0;
     comHistoryCount_ = 0;
+    comOffset_ = centreOfMassOffsetM(d, pose);
+    comOffsetRate_.setZero();
     for (auto& p : pose.positionM) {
         p += root_ - old;
     }
@@ -109,11 +117,13 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     if (freeFallCount_ == 1) {
         // The take-off was during this frame, so the root's state at its start (the feet, now
         // unloaded, stop carrying the root, and they rarely leave the floor at a frame's start).
-        takeoffVelocity_ = fusedVelocity_;
-        takeoffRoot_ = root_;
+        // Up, the root's velocity (the pelvis accelerometer's over the push-off's end) plus the
+        // centre of mass' own move about the root then; across, the centre of mass' mean.
         freeFallS_ = 0;
         takeoffComVelocity_ = takeoffHorizontalComVelocity();
-        takeoffCom_ = comHistoryCount_ > 0 ? comHistory_[comHistoryHead_].positionM : root_;
+        takeoffComVelocity_.y() = fusedVelocity_.y() + comOffsetRate_.y();
+        takeoffCom_ = comHistoryCount_ > 0 ? comHistory_[comHistoryHead_].positionM
+                                           : Vec3d(root_ + comOffset_);
     }
     // Flight starts once per free fall: a landing while the accelerometer still reads free fall
     // (a take-off velocity a little low) stays landed. It starts where the ballistic path from
@@ -123,26 +133,45 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         phase_ = ContactPhase::Flight;
         point_ = -1;
         const Vec3d g(0, options_.gravityMps2, 0);
-        velocity_ = takeoffVelocity_ - g * freeFallS_;
-        root_ = takeoffRoot_ + (takeoffVelocity_ - 0.5 * g * freeFallS_) * freeFallS_;
-        com_ = takeoffCom_ + takeoffComVelocity_ * freeFallS_;
+        com_ = takeoffCom_ + (takeoffComVelocity_ - 0.5 * g * freeFallS_) * freeFallS_;
+        comVerticalVelocity_ = takeoffComVelocity_.y() - options_.gravityMps2 * freeFallS_;
+        root_ = com_ - comOffset_;
     }
 
     Vec3d next = root_;
     if (phase_ == ContactPhase::Flight) {
-        // Exact for constant gravity: the path is a parabola. Horizontally the centre of mass
-        // keeps its take-off velocity and the root is where the body's shape puts it from
-        // there; vertically the root flies (its take-off velocity is the pelvis sensor's).
-        com_ += takeoffComVelocity_ * dtS;
-        next.x() = com_.x() - comOffset.x();
-        next.z() = com_.z() - comOffset.z();
-        next.y() = root_.y() + velocity_.y() * dtS - 0.5 * options_.gravityMps2 * dtS * dtS;
-        if (dtS > 0) {
-            velocity_.x() = (next.x() - root_.x()) / dtS;
-            velocity_.z() = (next.z() - root_.z()) / dtS;
+        // Exact for constant gravity: the centre of mass' path is a parabola (horizontally it
+        // keeps its take-off velocity), and the root is where the body's shape puts it from
+        // there: legs tucked in the air lift the centre of mass towards the root.
+        com_.x() += takeoffComVelocity_.x() * dtS;
+        com_.z() += takeoffComVelocity_.z() * dtS;
+        com_.y() += comVerticalVelocity_ * dtS - 0.5 * options_.gravityMps2 * dtS * dtS;
+        comVerticalVelocity_ -= options_.gravityMps2 * dtS;
+        next = com_ - comOffset;
+        // Across, the feet's own sensors, while their dead reckoning holds, say where the body
+        // goes better than the take-off velocity: the root moves as each foot sensor moves in
+        // the world, less its move relative to the root (the pose's), averaged over the feet.
+        if (footSensors != nullptr && footSensorsKnown_) {
+            Vec3d step = Vec3d::Zero();
+            int feetValid = 0;
+            for (std::size_t f = 0; f < 2; ++f) {
+                if (footSensors->valid[f]) {
+                    step += footSensors->velocityMps[f] * dtS -
+                            (footSensorOnPose(pose, *footSensors, f) - footSensorRelM_[f]);
+                    ++feetValid;
+                }
+            }
+            if (feetValid > 0) {
+                next.x() = root_.x() + step.x() / feetValid;
+                next.z() = root_.z() + step.z() / feetValid;
+                com_.x() = next.x() + comOffset.x();
+                com_.z() = next.z() + comOffset.z();
+            }
         }
-        velocity_.y() -= options_.gravityMps2 * dtS;
-        if (next.y() + minY <= floorYM && velocity_.y() <= 0) {
+        if (dtS > 0) {
+            velocity_ = (next - root_) / dtS;
+        }
+        if (next.y() + minY <= floorYM && comVerticalVelocity_ <= 0) {
             // Landing: the lowest foot point touches the floor and becomes the anchor.
             int lowest = 0;
             for (int k = 1; k < 6; ++k) {
@@ -222,6 +251,16 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         fusedVelocity_ = velocity_;
     }
     root_ = next;
+    if (dtS > 0) {
+        comOffsetRate_ = (comOffset - comOffset_) / dtS;
+    }
+    comOffset_ = comOffset;
+    footSensorsKnown_ = footSensors != nullptr;
+    if (footSensorsKnown_) {
+        for (std::size_t f = 0; f < 2; ++f) {
+            footSensorRelM_[f] = footSensorOnPose(pose, *footSensors, f);
+        }
+    }
     if (phase_ == ContactPhase::Flight) {
         comHistoryCount_ = 0;
     } else {

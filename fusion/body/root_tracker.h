@@ -96,13 +96,17 @@ private:
     ContactOptions options_;
     Vec3d root_ = Vec3d::Zero();
     Vec3d velocity_ = Vec3d::Zero();
-    Vec3d takeoffVelocity_ = Vec3d::Zero();
-    Vec3d takeoffRoot_ = Vec3d::Zero();  // where the root was when the free fall began
-    // The centre of mass, horizontally (x, z; y unused): at the take-off, its velocity then, and
-    // where it is in flight.
+    // The centre of mass: at the take-off (when the free fall began), its velocity then, and
+    // where it is in flight and how fast it rises.
     Vec3d takeoffCom_ = Vec3d::Zero();
     Vec3d takeoffComVelocity_ = Vec3d::Zero();
     Vec3d com_ = Vec3d::Zero();
+    double comVerticalVelocity_ = 0;
+    Vec3d comOffset_ = Vec3d::Zero();      // the latest frame's centre of mass from the root
+    Vec3d comOffsetRate_ = Vec3d::Zero();  // and how fast it moved in that frame
+    // The feet's sensors relative to the root at the latest frame, when the feet were given.
+    std::array<Vec3d, 2> footSensorRelM_{Vec3d::Zero(), Vec3d::Zero()};
+    bool footSensorsKnown_ = false;
     // The centre of mass at the end of the latest frames in stance (world) and their durations,
     // a ring (the newest at comHistoryHead_): the take-off's horizontal velocity.
     struct ComSample {

@@ -239,15 +239,23 @@ TEST(RootTracker, InFlightTheCentreOfMassKeepsItsVelocityAndTheRootMovesAboutIt)
     // must move the other way for it to keep its path.
     std::vector<Vec3d> comPath;
     std::vector<Vec3d> rootPath;
+    std::vector<double> comHeight;
     for (int k = 1; k <= 15; ++k) {
         s.solve(frameOf(crouch(20 * kDeg, 2.0 * k * kDeg)), 0.01, Vec3d(3.0, 0.2, -2.0));
         if (s.rootTracker().phase() == ContactPhase::Flight) {
             comPath.push_back(com());
+            comHeight.push_back(s.pose().positionM[0].y() + centreOfMassOffsetM(d, s.pose()).y());
             const Vec3d& r = s.pose().positionM[0];
             rootPath.emplace_back(r.x(), 0, r.z());
         }
     }
     ASSERT_GE(comPath.size(), 10U);
+    // Up it falls freely: its height's second difference is -g dt^2 in every frame.
+    for (std::size_t k = 2; k < comHeight.size(); ++k) {
+        EXPECT_NEAR(comHeight[k] - 2 * comHeight[k - 1] + comHeight[k - 2], -9.81 * 0.01 * 0.01,
+                    1e-9)
+            << "frame " << k;
+    }
     const Vec3d v = (comPath[1] - comPath[0]) / 0.01;
     for (std::size_t k = 2; k < comPath.size(); ++k) {
         const Vec3d expected = comPath[0] + v * (0.01 * static_cast<double>(k));
@@ -257,6 +265,63 @@ TEST(RootTracker, InFlightTheCentreOfMassKeepsItsVelocityAndTheRootMovesAboutIt)
     const Vec3d rootMoved = rootPath.back() - rootPath.front();
     const Vec3d comMoved = comPath.back() - comPath.front();
     EXPECT_GT((rootMoved - comMoved).norm(), 0.02);
+}
+
+// In the air the feet's own sensors, while their dead reckoning holds, carry the root across: each
+// foot sensor moves in the world as it reports, whatever the body's shape does meanwhile (the legs
+// swing forward, which moves the feet relative to the root). With no valid foot, the centre of
+// mass flies as before.
+TEST(RootTracker, InFlightTheFeetSensorsCarryTheRootAcross) {
+    const Dimensions d = dims();
+    const Vec3d onFoot(0.0, 0.03, 0.06);
+    const Vec3d feetVelocity(0.4, -1.0, 0.3);  // world; the vertical is not used across
+    auto flight = [&](bool valid) {
+        BodySolver s = makeSolver(d);
+        FootSensorMotion feet;
+        feet.onFootM = {onFoot, onFoot};
+        for (int k = 0; k <= 20; ++k) {
+            s.solve(frameOf(crouchPose((60 - 40 * k / 20.0) * kDeg, 0)), 0.01, Vec3d(0, 9.81, 0),
+                    &feet);
+        }
+        feet.valid = {valid, valid};
+        feet.velocityMps = {feetVelocity, feetVelocity};
+        std::vector<Vec3d> sensorPath;  // the left foot's sensor in the world, across
+        std::vector<Vec3d> rootPath;
+        for (int k = 1; k <= 15; ++k) {
+            Pose swing = crouchPose(20 * kDeg, 0);
+            for (S t : {S::LThigh, S::RThigh}) {
+                swing.qLocal[idx(t)] =
+                    Quatd(Eigen::AngleAxisd(-(20 + 2.0 * k) * kDeg, Vec3d::UnitX()));
+            }
+            s.solve(frameOf(swing), 0.01, Vec3d(3.0, 0.2, -2.0), &feet);
+            if (s.rootTracker().phase() == ContactPhase::Flight) {
+                const Vec3d p = pointOnSegment(s.pose(), idx(S::LHindfoot), onFoot);
+                sensorPath.emplace_back(p.x(), 0, p.z());
+                const Vec3d& r = s.pose().positionM[0];
+                rootPath.emplace_back(r.x(), 0, r.z());
+            }
+        }
+        return std::pair{sensorPath, rootPath};
+    };
+    const auto [sensorPath, rootPath] = flight(true);
+    ASSERT_GE(sensorPath.size(), 10U);
+    const Vec3d across(feetVelocity.x(), 0, feetVelocity.z());
+    for (std::size_t k = 1; k < sensorPath.size(); ++k) {
+        EXPECT_NEAR((sensorPath[k] - sensorPath[k - 1] - across * 0.01).norm(), 0, 1e-9)
+            << "frame " << k;
+    }
+    // The root did not move at the feet's velocity: the swing moved the feet about it.
+    const Vec3d rootMoved = rootPath.back() - rootPath.front();
+    const Vec3d sensorMoved = sensorPath.back() - sensorPath.front();
+    EXPECT_GT((rootMoved - sensorMoved).norm(), 0.01);
+    // Not valid: the feet's report moves nothing, the centre of mass flies from the push-off
+    // (straight up here).
+    const auto [sensorPathNone, rootPathNone] = flight(false);
+    ASSERT_GE(rootPathNone.size(), 10U);
+    EXPECT_GT((sensorPathNone.back() - sensorPathNone.front() -
+               across * (0.01 * static_cast<double>(sensorPathNone.size() - 1)))
+                  .norm(),
+              0.02);
 }
 
 }  // namespace
