@@ -226,8 +226,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         const auto uf = static_cast<std::size_t>(foot);
         if (footSensors != nullptr && footSensors->valid[uf] && !footSensors->still[uf] &&
             dtS > 0) {
-            const Vec3d sensor = pointOnSegment(pose, idx(foot == 0 ? S::LHindfoot : S::RHindfoot),
-                                                footSensors->onFootM[uf]);
+            const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
             const Vec3d slip =
                 footSensors->velocityMps[uf] +
                 footSensors->rateRadS[uf].cross(r[static_cast<std::size_t>(point_)] - sensor);

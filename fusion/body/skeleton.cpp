@@ -317,10 +317,9 @@ Result<Dimensions> dimensionsFromSubject(const board::SubjectConfig& subject) {
     }
     d.massFraction[static_cast<std::size_t>(idx(S::RHindfoot))] = kRightFootMass;
     if (subject.massKg) {
-        for (const MassRow& r : kMass) {
-            d.massKg[static_cast<std::size_t>(idx(r.s))] = r.fraction * *subject.massKg;
+        for (std::size_t i = 0; i < d.massKg.size(); ++i) {
+            d.massKg[i] = d.massFraction[i] * *subject.massKg;
         }
-        d.massKg[static_cast<std::size_t>(idx(S::RHindfoot))] = kRightFootMass * *subject.massKg;
     }
     setCentresOfMass(d);
     return d;
