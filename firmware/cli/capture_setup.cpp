@@ -60,11 +60,10 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
         s.calibrationText = formatCalibration(*set);
     }
     s.boardText = b.text;
-    if (s.sim) {
-        s.clock = std::make_unique<SimulatedClock>(MonotonicClock().now(), o.speed);
-    } else {
-        s.clock = std::make_unique<MonotonicClock>();
-    }
+    // The virtual suit's paced clock is made once its clip is loaded (seconds in a debug or
+    // sanitizer build), starting where the clip starts: made before, it ran on through the
+    // loading and the capture began that long, times the speed, into the motion.
+    const Timestamp simStart = MonotonicClock().now();
     board::sim::SourceFactory sources;
     if (s.sim && !o.rest) {
         board::sim::ClipOptions clip;
@@ -86,7 +85,7 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
             log::logger(log::Category::Sim)
                 .warn("no motion clip found (give --bvh FILE): the virtual suit stands still");
         } else {
-            auto suitMotion = board::sim::clipSources(clip, s.clock->now());
+            auto suitMotion = board::sim::clipSources(clip, simStart);
             if (!suitMotion) {
                 return Error{EINVAL, suitMotion.error().message};
             }
@@ -96,6 +95,11 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
                                        static_cast<double>(suitMotion->motion->durationNs()) * 1e-9,
                                        o.profile);
         }
+    }
+    if (s.sim) {
+        s.clock = std::make_unique<SimulatedClock>(simStart, o.speed);
+    } else {
+        s.clock = std::make_unique<MonotonicClock>();
     }
     if (s.sim && o.wrapSources) {
         sources = o.wrapSources(std::move(sources));
