@@ -74,12 +74,15 @@ std::string timestampName() {
 
 // The body's figures: the calibration and, on the virtual suit, how far its mountings are from
 // the sensors' true (strapped) ones; the poses and their latency.
-// Where the CPU went: the capture's own threads, and the whole process (the preview's
-// rendering, the recorder's disk writes, the streams, and the setup before the capture).
-void printCpu(const CaptureStats& stats) {
-    const double seconds = toSeconds(stats.elapsed);
+// Where the CPU went: the capture's own threads over the capture's real time (a paced
+// virtual suit's capture clock runs faster or slower), and the whole process over its life
+// (the preview's rendering, the recorder's disk writes, the streams, and the setup before).
+void printCpu(const CaptureStats& stats, Timestamp processStart) {
+    const double seconds = toSeconds(stats.realElapsed);
+    const double lifeS = toSeconds(MonotonicClock().now() - processStart);
     rusage usage{};
-    if (seconds <= 0 || stats.pipelineCpu.count() == 0 || ::getrusage(RUSAGE_SELF, &usage) != 0) {
+    if (seconds <= 0 || lifeS <= 0 || stats.pipelineCpu.count() == 0 ||
+        ::getrusage(RUSAGE_SELF, &usage) != 0) {
         return;  // stepped, or nothing measured
     }
     const auto cpuS = [](const timeval& tv) {
@@ -89,10 +92,10 @@ void printCpu(const CaptureStats& stats) {
     const double workers = toSeconds(stats.busWorkersCpu);
     const double process = cpuS(usage.ru_utime) + cpuS(usage.ru_stime);
     fmt::print(
-        "cpu: pipeline {:.2f} s ({:.1f} % of one core), bus workers {:.2f} s ({:.1f} %), whole "
-        "process {:.2f} s ({:.1f} %)\n",
-        pipeline, 100 * pipeline / seconds, workers, 100 * workers / seconds, process,
-        100 * process / seconds);
+        "cpu over the capture's {:.2f} s of real time: pipeline {:.2f} s ({:.1f} % of one core), "
+        "bus workers {:.2f} s ({:.1f} %); whole process {:.2f} s in {:.2f} s ({:.1f} %)\n",
+        seconds, pipeline, 100 * pipeline / seconds, workers, 100 * workers / seconds, process,
+        lifeS, 100 * process / lifeS);
 }
 
 void printBody(const BodyStage& body, const board::Board& b,
@@ -121,6 +124,7 @@ void printBody(const BodyStage& body, const board::Board& b,
 }
 
 int run(const RunOptions& o) {
+    const Timestamp processStart = MonotonicClock().now();
     const auto loaded = loadCommandBoard(o.board);
     if (!loaded) {
         return kExitUsage;
@@ -271,7 +275,7 @@ int run(const RunOptions& o) {
             : std::string(),
         stats.lost, toSeconds(stats.latencyP50) * 1e3, toSeconds(stats.latencyP99) * 1e3,
         toSeconds(stats.latencyMax) * 1e3);
-    printCpu(stats);
+    printCpu(stats, processStart);
     if (const RecordingWriter* w = hub.recorder().current(); w != nullptr) {
         std::error_code ec;
         const auto size = fs::file_size(recordingPath, ec);

@@ -37,6 +37,7 @@ Capture::~Capture() {
 
 void Capture::start(Duration duration) {
     started_ = clock_.now();
+    realStarted_ = realClock_.now();
     const Timestamp endAt = duration.count() > 0 ? started_ + duration : Timestamp::max();
     for (auto& w : workers_) {
         w->start(threadPolicy_);
@@ -139,6 +140,7 @@ void Capture::end(Timestamp now) {
     }
     pipeline_.finish(now);
     stats_.elapsed = now - started_;
+    stats_.realElapsed = realClock_.now() - realStarted_;
     for (auto& w : workers_) {
         for (std::size_t i = 0; i < w->sensorCount(); ++i) {
             stats_.dropped += w->counters(i).dropped.load();
@@ -161,6 +163,7 @@ void Capture::stepUntil(Timestamp end) {
     if (!stepping_) {
         stepping_ = true;
         started_ = clock_.now();
+        realStarted_ = realClock_.now();
         nextTick_ = started_;
     }
     while (!stopRequested() && clock_.now() < end) {

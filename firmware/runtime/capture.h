@@ -29,7 +29,8 @@ struct CaptureStats {
     // Samples still in the rings at the end that the stages could not take within 0.2 s
     // (a pipeline hopelessly behind its workers: a virtual suit paced beyond the machine).
     std::uint64_t abandoned = 0;
-    Duration elapsed{};
+    Duration elapsed{};      // on the capture's clock
+    Duration realElapsed{};  // in real time (a paced virtual suit runs faster or slower)
     // Latency from each sample's data-ready time to the pipeline taking it (on the capture
     // clock): percentiles over the run.
     Duration latencyP50{};
@@ -107,6 +108,7 @@ private:
     std::atomic<bool> stopRequested_{false};
     std::thread thread_;
     Timestamp started_{};
+    Timestamp realStarted_{};
     Timestamp nextTick_{};
     bool stepping_ = false;
     CaptureStats stats_;

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "tests/firmware/cli_run.h"
+#include "tests/firmware/sim_speed.h"
 
 namespace {
 
@@ -22,6 +23,7 @@ using ::testing::HasSubstr;
 using caphub::testing::caphub;
 using caphub::testing::CliRun;
 using caphub::testing::shell;
+using caphub::testing::speedOption;
 
 std::string writeTemp(const std::string& name, const std::string& text) {
     const std::string path = ::testing::TempDir() + name;
@@ -116,7 +118,8 @@ TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     const std::string file = dir + "/status.json";
-    ASSERT_EQ(caphub("run --board sim-upper10 --duration 1 --speed 4 --no-preview --no-record "
+    ASSERT_EQ(caphub("run --board sim-upper10 --duration 1 " + speedOption(4) +
+                     " --no-preview --no-record "
                      "--status-file " +
                      file)
                   .exitCode,
@@ -178,8 +181,8 @@ namespace {
 TEST(Cli, RunCapturesTheVirtualSuitAndInfoDescribesTheRecording) {
     const std::string out = ::testing::TempDir() + "caphub-cli-run";
     std::filesystem::remove_all(out);
-    const CliRun r =
-        caphub("run --board sim-upper10 --duration 1 --speed 4 --no-preview --out " + out);
+    const CliRun r = caphub("run --board sim-upper10 --duration 1 " + speedOption(4) +
+                            " --no-preview --out " + out);
     ASSERT_EQ(r.exitCode, 0) << r.output;
     EXPECT_THAT(r.output, HasSubstr("10 sensors on 1 buses"));
     EXPECT_THAT(r.output, HasSubstr(" 0 dropped, 0 sensor losses"));
@@ -205,8 +208,8 @@ TEST(Cli, ALowerBodySuitRunsAndItsExportMarksTheUpperBodyNotMeasured) {
     const std::string rec =
         ::testing::TempDir() + "caphub-cli-lower7-" + std::to_string(getpid()) + ".cap";
     std::filesystem::remove(rec);
-    const CliRun r =
-        caphub("run --board " + board + " --duration 2 --speed 4 --no-preview --record " + rec);
+    const CliRun r = caphub("run --board " + board + " --duration 2 " + speedOption(4) +
+                            " --no-preview --record " + rec);
     ASSERT_EQ(r.exitCode, 0) << r.output;
     EXPECT_THAT(r.output, HasSubstr("7 sensors on 2 buses"));
     const std::string csv = rec + ".csv";
@@ -252,8 +255,9 @@ TEST(Cli, AFullDiskStopsTheRecordingAndTheReportCountsWhatTheFileHolds) {
     const std::string path =
         ::testing::TempDir() + "caphub-cli-full-" + std::to_string(getpid()) + ".cap";
     std::filesystem::remove(path);
-    const CliRun r = shell("trap '' XFSZ; ulimit -f 300; exec " + std::string(CAPHUB_BINARY) +
-                           " run --duration 3 --speed 4 --no-preview --record " + path);
+    const CliRun r =
+        shell("trap '' XFSZ; ulimit -f 300; exec " + std::string(CAPHUB_BINARY) +
+              " run --duration 3 " + speedOption(4) + " --no-preview --record " + path);
     EXPECT_EQ(r.exitCode, 1) << r.output;
     EXPECT_THAT(r.output, HasSubstr("stopped early: File too large")) << r.output;
     std::smatch m;
@@ -341,9 +345,8 @@ TEST(CliCalibrate, GyroThenAccelOnTheVirtualSuitFillOneFileThatRunRecords) {
 
     const std::string dir = ::testing::TempDir() + "caphub-cal-run";
     std::filesystem::remove_all(dir);
-    const CliRun run =
-        caphub("run --board sim-upper10 --duration 1 --speed 5 --no-preview --calibration " + file +
-               " --out " + dir);
+    const CliRun run = caphub("run --board sim-upper10 --duration 1 " + speedOption(5) +
+                              " --no-preview --calibration " + file + " --out " + dir);
     ASSERT_EQ(run.exitCode, 0) << run.output;
     const CliRun info = shell(std::string(CAPHUB_BINARY) + " info " + dir + "/*.cap");
     EXPECT_THAT(info.output, HasSubstr("[calibration]"));
@@ -385,9 +388,8 @@ TEST(CliReplay, ACapturesPosesPlayBackIntoPreviewFrames) {
     const std::string dir = ::testing::TempDir() + "caphub-replay-" + std::to_string(getpid());
     std::filesystem::remove_all(dir);
     // 6 s at 5x: the T-pose calibration takes the first ~3.7 s, then 60 poses a second.
-    const CliRun run = caphub(
-        "run --board sim-upper10 --duration 6 --speed 5 --calibrate tpose --no-preview --out " +
-        dir);
+    const CliRun run = caphub("run --board sim-upper10 --duration 6 " + speedOption(5) +
+                              " --calibrate tpose --no-preview --out " + dir);
     ASSERT_EQ(run.exitCode, 0) << run.output;
     EXPECT_THAT(run.output, HasSubstr("body calibration: tpose"));
     const CliRun r = shell(std::string(CAPHUB_BINARY) + " replay " + dir +
@@ -407,12 +409,12 @@ TEST(CliReplay, ARecordingWithoutPosesIsAUsageError) {
     const std::string dir = ::testing::TempDir() + "caphub-replay-np-" + std::to_string(getpid());
     std::filesystem::remove_all(dir);
     // The body stage writes no pose before its calibration: a 1 s capture has none.
-    ASSERT_EQ(
-        caphub("run --board sim-upper10 --duration 1 --speed 5 --calibrate tpose --no-preview "
-               "--out " +
-               dir)
-            .exitCode,
-        0);
+    ASSERT_EQ(caphub("run --board sim-upper10 --duration 1 " + speedOption(5) +
+                     " --calibrate tpose --no-preview "
+                     "--out " +
+                     dir)
+                  .exitCode,
+              0);
     const CliRun r = shell(std::string(CAPHUB_BINARY) + " replay " + dir +
                            "/*.cap --preview png:" + dir + "/frames");
     EXPECT_EQ(r.exitCode, 2);
@@ -484,15 +486,21 @@ TEST(CliRun, TheReportSaysWhereTheCpuWent) {
     std::smatch m;
     ASSERT_TRUE(std::regex_search(
         r.output, m,
-        std::regex(
-            R"(cpu: pipeline ([0-9.]+) s \([0-9.]+ % of one core\), bus workers ([0-9.]+) s )"
-            R"(\([0-9.]+ %\), whole process ([0-9.]+) s)")))
+        std::regex(R"(cpu over the capture's ([0-9.]+) s of real time: pipeline ([0-9.]+) s )"
+                   R"(\([0-9.]+ % of one core\), bus workers ([0-9.]+) s \([0-9.]+ %\); whole )"
+                   R"(process ([0-9.]+) s in ([0-9.]+) s)")))
         << r.output;
-    const double pipeline = std::stod(m[1]);
-    const double workers = std::stod(m[2]);
-    const double process = std::stod(m[3]);
+    const double captureS = std::stod(m[1]);
+    const double pipeline = std::stod(m[2]);
+    const double workers = std::stod(m[3]);
+    const double process = std::stod(m[4]);
+    const double lifeS = std::stod(m[5]);
     EXPECT_GT(pipeline + workers, 0.0) << r.output;
     EXPECT_GE(process + 0.01, pipeline + workers) << r.output;  // printed to 0.01 s
+    // The shares are of real time: 3 s at the default speed of 1 is about 3 s of it, and the
+    // process lived through the capture and its setup.
+    EXPECT_GT(captureS, 2.5) << r.output;
+    EXPECT_GE(lifeS + 0.01, captureS) << r.output;
 }
 
 TEST(CliRun, APreviewPortThatIsNotANumberIsRefused) {
