@@ -334,13 +334,29 @@ void VirtualImu::advance(Walk& w, std::uint64_t stream, double rateU, std::int64
 }
 
 void VirtualImu::readGyroAccel(std::int64_t tNs, Vec3d& gyroRadS, Vec3d& accelMps2) {
-    SegmentState st;
-    trajectory_.evaluate(placement_.segment, tNs, st);
-    const ImuSignals s = idealSignals(st, placement_, env_);
+    addGyroAccelErrors(ideal(tNs), tNs, gyroRadS, accelMps2);
+}
+
+void VirtualImu::readMag(std::int64_t tNs, Vec3d& magUt) {
+    addMagErrors(ideal(tNs), tNs, magUt);
+}
+
+ImuSignals VirtualImu::read(std::int64_t tNs) {
+    // One evaluation of the trajectory for all three (each stream's errors are its own).
+    const ImuSignals truth = ideal(tNs);
+    ImuSignals s;
+    addGyroAccelErrors(truth, tNs, s.gyroRadS, s.accelMps2);
+    addMagErrors(truth, tNs, s.magUt);
+    return s;
+}
+
+void VirtualImu::addGyroAccelErrors(const ImuSignals& truth, std::int64_t tNs, Vec3d& gyroRadS,
+                                    Vec3d& accelMps2) {
     advance(gyroWalk_, kGyroWalk, spec_.gyro.biasRandomWalk, tNs);
     advance(accelWalk_, kAccelWalk, spec_.accel.biasRandomWalk, tNs);
-    gyroRadS = constants_.gyroMatrix * s.gyroRadS + constants_.gyroBiasRadS + gyroWalk_.biasU;
-    accelMps2 = constants_.accelMatrix * s.accelMps2 + constants_.accelBiasMps2 + accelWalk_.biasU;
+    gyroRadS = constants_.gyroMatrix * truth.gyroRadS + constants_.gyroBiasRadS + gyroWalk_.biasU;
+    accelMps2 =
+        constants_.accelMatrix * truth.accelMps2 + constants_.accelBiasMps2 + accelWalk_.biasU;
     if (gyroSigma_ > 0) {
         gyroRadS += gaussian3(kGyroNoise, tNs) * gyroSigma_;
     }
@@ -349,22 +365,12 @@ void VirtualImu::readGyroAccel(std::int64_t tNs, Vec3d& gyroRadS, Vec3d& accelMp
     }
 }
 
-void VirtualImu::readMag(std::int64_t tNs, Vec3d& magUt) {
-    SegmentState st;
-    trajectory_.evaluate(placement_.segment, tNs, st);
-    const ImuSignals s = idealSignals(st, placement_, env_);
+void VirtualImu::addMagErrors(const ImuSignals& truth, std::int64_t tNs, Vec3d& magUt) {
     advance(magWalk_, kMagWalk, spec_.mag.biasRandomWalk, tNs);
-    magUt = constants_.magMatrix * s.magUt + constants_.magOffsetUt + magWalk_.biasU;
+    magUt = constants_.magMatrix * truth.magUt + constants_.magOffsetUt + magWalk_.biasU;
     if (magSigma_ > 0) {
         magUt += gaussian3(kMagNoise, tNs) * magSigma_;
     }
-}
-
-ImuSignals VirtualImu::read(std::int64_t tNs) {
-    ImuSignals s;
-    readGyroAccel(tNs, s.gyroRadS, s.accelMps2);
-    readMag(tNs, s.magUt);
-    return s;
 }
 
 ImuSignals VirtualImu::ideal(std::int64_t tNs) const {

@@ -130,6 +130,10 @@ private:
         bool started = false;
     };
 
+    // The chip's errors on the true signals at tNs, advancing that stream's bias walk.
+    void addGyroAccelErrors(const ImuSignals& truth, std::int64_t tNs, Vec3d& gyroRadS,
+                            Vec3d& accelMps2);
+    void addMagErrors(const ImuSignals& truth, std::int64_t tNs, Vec3d& magUt);
     Vec3d gaussian3(std::uint64_t stream, std::int64_t tNs) const;
     void advance(Walk& w, std::uint64_t stream, double rateU, std::int64_t tNs) const;
 
