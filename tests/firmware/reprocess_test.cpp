@@ -14,6 +14,7 @@
 
 #include "firmware/recording/reader.h"
 #include "tests/firmware/cli_run.h"
+#include "tests/firmware/sim_speed.h"
 
 namespace {
 
@@ -22,6 +23,7 @@ using ::testing::HasSubstr;
 
 using caphub::testing::caphub;
 using caphub::testing::CliRun;
+using caphub::testing::speedOption;
 
 std::string temp(const std::string& name) {
     const std::string d = ::testing::TempDir() + "caphub_reprocess_" + std::to_string(getpid());
@@ -97,10 +99,10 @@ protected:
     static void SetUpTestSuite() {
         source_ = temp("source.cap");
         fs::remove(source_);
-        sourceRun_ = caphub(
-            "run --board sim-suit --duration 7 --speed 8 --calibrate tpose "
-            "--no-preview --no-stream --record " +
-            source_);
+        sourceRun_ = caphub("run --board sim-suit --duration 7 " + speedOption(4) +
+                            " --calibrate tpose "
+                            "--no-preview --no-stream --record " +
+                            source_);
     }
     void SetUp() override { ASSERT_EQ(sourceRun_.exitCode, 0) << sourceRun_.output; }
     static std::string source_;
