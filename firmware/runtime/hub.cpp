@@ -313,6 +313,7 @@ HubState Hub::state() {
                                       : std::string("not calibrated"));
         s.poses = body_.poses();
         s.calibrationStatus = body_.tracker().calibrationStatus();
+        s.headingReset = body_.tracker().headingResetStatus();
         s.poseLatency = body_.latencyWindow();
         s.gyroClipEvents.resize(board_.sensors.size());
         for (std::size_t i = 0; i < board_.sensors.size(); ++i) {

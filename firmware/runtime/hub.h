@@ -82,6 +82,7 @@ struct HubState {
     bool bodyCalibrated = false;
     std::string bodyCalibration;                // the method, or why it failed
     body::CalibrationStatus calibrationStatus;  // the latest request and how far it got
+    body::HeadingResetStatus headingReset;      // the latest heading reset asked for
     std::uint64_t poses = 0;
     // The body's latency window (data-ready -> pose written), a copy: percentiles off the pipeline.
     LatencyWindow poseLatency{1};

@@ -74,6 +74,9 @@ Json WebServer::State::buildState(const HubState& h) {
                            {"method", std::string(body::toString(h.calibrationStatus.method))},
                            {"progress", h.calibrationStatus.progress},
                            {"message", h.calibrationStatus.message}};
+    bodyJson["heading_reset"] = {{"state", std::string(body::toString(h.headingReset.state))},
+                                 {"heading_deg", h.headingReset.headingDeg},
+                                 {"message", h.headingReset.message}};
     {
         std::lock_guard lock(calibrationMutex);
         const auto now = SteadyClock::now();

@@ -148,6 +148,11 @@ function showState(s) {
     text = `calibration failed: ${req.message}`;
   }
   $('cal-status').textContent = text;
+  const hr = b.heading_reset || {};
+  $('heading-status').textContent =
+    hr.state === 'pending' ? 'heading reset: waiting for the capture to reach it'
+    : hr.state === 'done' ? `heading reset: done (the capture heading turned to ${hr.heading_deg.toFixed(1)} deg)`
+    : hr.state === 'failed' ? hr.message : '';
 }
 
 // ---- commands -----------------------------------------------------------------------------

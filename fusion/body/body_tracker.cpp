@@ -35,6 +35,20 @@ std::string_view toString(CalibrationStatus::State s) {
     return "?";
 }
 
+std::string_view toString(HeadingResetStatus::State s) {
+    switch (s) {
+        case HeadingResetStatus::State::NotAsked:
+            return "not asked";
+        case HeadingResetStatus::State::Pending:
+            return "pending";
+        case HeadingResetStatus::State::Done:
+            return "done";
+        case HeadingResetStatus::State::Failed:
+            return "failed";
+    }
+    return "?";
+}
+
 BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> sensors,
                          const BodyTrackerOptions& options)
     : sensors_(std::move(sensors)),
@@ -104,6 +118,12 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     if (!gridStarted_ && calibrated_) {
         gridStarted_ = true;
         nextGrid_ = t;
+    }
+    if (!calibrated_ && headingResetAt_ && t >= *headingResetAt_) {
+        // Its moment has come with nothing to turn: it fails now, rather than wait and turn a
+        // calibration made after it was asked for.
+        applyHeadingReset(*headingResetAt_, events);
+        headingResetAt_.reset();
     }
 
     if (request_) {
@@ -267,6 +287,7 @@ void BodyTracker::startTwoPoseCalibration(Timestamp tPoseFrom, Timestamp nPoseFr
 
 void BodyTracker::headingResetAt(Timestamp t) {
     headingResetAt_ = t;
+    headingResetStatus_ = HeadingResetStatus{HeadingResetStatus::State::Pending, 0, {}};
 }
 
 void BodyTracker::forget(std::size_t sensor) {
@@ -595,9 +616,14 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
 }
 
 void BodyTracker::applyHeadingReset(Timestamp t, TrackerEvents& events) {
-    if (!calibrated_) {
+    const auto fail = [&](std::string message) {
         events.headingResetFailed = true;
-        events.message = "heading reset: no body calibration to turn";
+        events.message = message;
+        headingResetStatus_ =
+            HeadingResetStatus{HeadingResetStatus::State::Failed, 0, std::move(message)};
+    };
+    if (!calibrated_) {
+        fail("heading reset: no body calibration to turn");
         return;
     }
     const SensorFrame frame = frameAt(t);
@@ -608,17 +634,14 @@ void BodyTracker::applyHeadingReset(Timestamp t, TrackerEvents& events) {
         }
     }
     if (!has(solver_.poseSolver().validSegments(present), idx(Segment::Pelvis))) {
-        events.headingResetFailed = true;
-        events.message = "heading reset: no orientation of the pelvis (nor the spine it follows)";
+        fail("heading reset: no orientation of the pelvis (nor the spine it follows)");
         return;
     }
     Pose pose;
     solver_.poseSolver().solve(frame, pose);
     const Vec3d forward = pose.world(Segment::Pelvis) * Vec3d::UnitZ();
     if (std::hypot(forward.x(), forward.z()) < 1e-6) {
-        events.headingResetFailed = true;
-        events.message =
-            "heading reset: the pelvis' forward axis is vertical, its heading undefined";
+        fail("heading reset: the pelvis' forward axis is vertical, its heading undefined");
         return;
     }
     headingReset(calibration_, pose);
@@ -626,6 +649,8 @@ void BodyTracker::applyHeadingReset(Timestamp t, TrackerEvents& events) {
     // The aiding's low-passed velocity is in the old world.
     rootVelocityValid_ = false;
     events.headingReset = true;
+    headingResetStatus_ = HeadingResetStatus{
+        HeadingResetStatus::State::Done, calibration_.headingRad * 180 / std::numbers::pi, {}};
 }
 
 SensorFrame BodyTracker::frameAt(Timestamp t) const {

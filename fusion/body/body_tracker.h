@@ -79,6 +79,16 @@ struct CalibrationStatus {
 };
 std::string_view toString(CalibrationStatus::State s);
 
+// The latest heading reset asked for, for a control page: waiting for the capture to reach its
+// moment, done (the capture's heading then), or failed and why.
+struct HeadingResetStatus {
+    enum class State : std::uint8_t { NotAsked, Pending, Done, Failed };
+    State state = State::NotAsked;
+    double headingDeg = 0;  // done: the capture heading it set
+    std::string message;    // failed: why
+};
+std::string_view toString(HeadingResetStatus::State s);
+
 // What an update did besides holding the orientation, for the caller to record.
 struct TrackerEvents {
     bool calibrated = false;         // calibration() is a new one, taken at the update's time
@@ -177,6 +187,7 @@ public:
     bool calibrated() const { return calibrated_; }
     const BodyCalibration& calibration() const { return calibration_; }
     CalibrationStatus calibrationStatus() const;
+    const HeadingResetStatus& headingResetStatus() const { return headingResetStatus_; }
     // Why the latest calibration request failed; empty when it did not (or is still averaging).
     const std::string& calibrationError() const { return calibrationMessage_; }
     std::uint64_t poses() const { return poses_; }
@@ -294,6 +305,7 @@ private:
     CalibrationMethod requested_ = CalibrationMethod::None;
     std::string calibrationMessage_;
     std::optional<Timestamp> headingResetAt_;
+    HeadingResetStatus headingResetStatus_;
 
     bool gridStarted_ = false;
     std::optional<Timestamp> firstUpdate_;  // of any sensor, since the tracker was made

@@ -327,7 +327,9 @@ TEST(BodyTracker, HeadingResetTurnsTheWorldSoThatThePelvisFacesForward) {
     worldFromLocal(turned);
     const double before = pelvisHeading(turned);
     ASSERT_GT(std::abs(before), 30 * kDeg);
+    EXPECT_EQ(tracker.headingResetStatus().state, HeadingResetStatus::State::NotAsked);
     tracker.headingResetAt(at(1s));
+    EXPECT_EQ(tracker.headingResetStatus().state, HeadingResetStatus::State::Pending);
     std::vector<TrackerEvents> events;
     for (int k = 0; k < 150; ++k) {
         const Timestamp t = at(kSample * k);
@@ -347,6 +349,32 @@ TEST(BodyTracker, HeadingResetTurnsTheWorldSoThatThePelvisFacesForward) {
     EXPECT_NEAR(pelvisHeading(tracker.pose()), 0, kTolRad);
     // The joints are as they were: the body turned as a whole.
     expectSameJoints(tracker.pose(), turned);
+    // What a control page shows: done, and the heading it set.
+    EXPECT_EQ(tracker.headingResetStatus().state, HeadingResetStatus::State::Done);
+    EXPECT_NEAR(tracker.headingResetStatus().headingDeg * kDeg, before, kTolRad);
+}
+
+TEST(BodyTracker, AHeadingResetWithNoCalibrationFailsAndSaysWhy) {
+    // No pose is solved before a calibration (solveUncalibrated off): there is no calibration
+    // for the reset to turn, and the status says so instead of staying pending.
+    const Suit suit;
+    BodyTrackerOptions options;
+    options.solveUncalibrated = false;
+    BodyTracker tracker(skeleton(), suit.sensors, options);
+    tracker.headingResetAt(at(100ms));
+    std::vector<TrackerEvents> events;
+    for (int k = 0; k < 30; ++k) {
+        feed(tracker, suit, at(kSample * k), Pose{}, 0, suit.nominal(), &events);
+    }
+    int failed = 0;
+    for (const auto& e : events) {
+        failed += e.headingResetFailed ? 1 : 0;
+        EXPECT_FALSE(e.headingReset);
+    }
+    EXPECT_EQ(failed, 1);
+    EXPECT_EQ(tracker.headingResetStatus().state, HeadingResetStatus::State::Failed);
+    EXPECT_NE(tracker.headingResetStatus().message.find("no body calibration"), std::string::npos)
+        << tracker.headingResetStatus().message;
 }
 
 TEST(BodyTracker, ASensorOfflineMakesItsSegmentsInvalidUntilItReportsAgain) {

@@ -177,6 +177,15 @@ def main():
         print(f"3D view ({renderer}): {drawn1} and {drawn2} drawn pixels; the two screenshots "
               "differ", flush=True)
 
+        # A heading reset from the page: the page says how it ended (done, or failed and why).
+        driver.find_element(By.ID, "heading-reset").click()
+        heading = driver.find_element(By.ID, "heading-status")
+        said = wait_for("the heading reset's outcome on the page",
+                        lambda: heading.text if ("done" in heading.text
+                                                 or heading.text.startswith("heading reset:")
+                                                 and "waiting" not in heading.text) else None)
+        print(f"heading reset on the page: {said}", flush=True)
+
         # A take from the page's buttons.
         status = driver.find_element(By.ID, "take-status")
         driver.find_element(By.ID, "take-name").send_keys("browser")
