@@ -81,17 +81,23 @@ bool hasEvent(const TakeContents& c, cap::EventKind kind, const std::string& tex
     return false;
 }
 
-// Waits (at most 20 s of real time) until the running take holds `n` records: the tests do not
-// depend on how fast a loaded machine runs the capture.
-bool waitForRecords(Hub& hub, std::uint64_t n) {
-    for (int i = 0; i < 400; ++i) {
-        const HubState s = hub.state();
-        if (s.take && s.take->records >= n) {
-            return true;
-        }
-        std::this_thread::sleep_for(milliseconds(50));
+// The hub's state once `done` holds of it, looked at every `every` at most 400 times (the last
+// state looked at when it never held): the tests do not depend on how fast a loaded machine
+// runs the capture.
+template <typename Done>
+HubState waitForState(Hub& hub, Done done, milliseconds every = milliseconds(25)) {
+    HubState s = hub.state();
+    for (int i = 1; i < 400 && !done(s); ++i) {
+        std::this_thread::sleep_for(every);
+        s = hub.state();
     }
-    return false;
+    return s;
+}
+
+// Waits (at most 20 s of real time) until the running take holds `n` records.
+bool waitForRecords(Hub& hub, std::uint64_t n) {
+    const auto holds = [n](const HubState& s) { return s.take && s.take->records >= n; };
+    return holds(waitForState(hub, holds, milliseconds(50)));
 }
 
 struct HubRig {
@@ -220,14 +226,8 @@ TEST(Hub, CalibratesTheBodyAndResetsTheHeadingWhileTheCaptureRuns) {
     EXPECT_FALSE(rig.hub->calibrateBody(body::ReferencePoseKind::T, -seconds(1)).ok());
     ASSERT_TRUE(rig.hub->calibrateBody(body::ReferencePoseKind::T, milliseconds(500)).ok());
     const auto waitFor = [&](body::CalibrationStatus::State want) {
-        for (int i = 0; i < 400; ++i) {
-            const HubState s = rig.hub->state();
-            if (s.calibrationStatus.state == want) {
-                return s;
-            }
-            std::this_thread::sleep_for(milliseconds(25));
-        }
-        return rig.hub->state();
+        return waitForState(
+            *rig.hub, [want](const HubState& s) { return s.calibrationStatus.state == want; });
     };
     const HubState done = waitFor(body::CalibrationStatus::State::Done);
     ASSERT_EQ(done.calibrationStatus.state, body::CalibrationStatus::State::Done)
@@ -247,12 +247,9 @@ TEST(Hub, CalibratesTheBodyAndResetsTheHeadingWhileTheCaptureRuns) {
 
     ASSERT_TRUE(rig.hub->headingReset().ok());
     // Done once the capture reaches the moment it was asked at (later on a loaded machine).
-    HubState reset = rig.hub->state();
-    for (int i = 0; i < 400 && reset.headingReset.state == body::HeadingResetStatus::State::Pending;
-         ++i) {
-        std::this_thread::sleep_for(milliseconds(25));
-        reset = rig.hub->state();
-    }
+    const HubState reset = waitForState(*rig.hub, [](const HubState& s) {
+        return s.headingReset.state != body::HeadingResetStatus::State::Pending;
+    });
     ASSERT_EQ(reset.headingReset.state, body::HeadingResetStatus::State::Done)
         << reset.headingReset.message;
     ASSERT_TRUE(waitForRecords(*rig.hub, rig.hub->state().take->records + 100));
