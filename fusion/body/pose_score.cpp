@@ -124,8 +124,14 @@ std::optional<PoseScore> PoseScorer::score() const {
     return s;
 }
 
+namespace {
+// Toes measured closer to the ankle than this: the clip has none.
+constexpr double kNoToesM = 0.01;
+}  // namespace
+
 Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
-    Dimensions d = *dimensionsFromSubject(board::SubjectConfig{});
+    const Dimensions model = *dimensionsFromSubject(board::SubjectConfig{});
+    Dimensions d = model;
     if (frames.empty()) {
         return d;
     }
@@ -140,10 +146,30 @@ Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
         d.offsetM[s] = sum / n;
     }
     for (int foot = 0; foot < 2; ++foot) {
-        const Vec3d ball = d.offsetM[static_cast<std::size_t>(
-            idx(foot == 0 ? Segment::LMiddistal : Segment::RMiddistal))];
-        const Vec3d horiz(ball.x(), 0, ball.z());
+        const auto toes =
+            static_cast<std::size_t>(idx(foot == 0 ? Segment::LMiddistal : Segment::RMiddistal));
         auto& fp = foot == 0 ? d.leftFootPointM : d.rightFootPointM;
+        if (d.offsetM[toes].norm() < kNoToesM) {
+            // A clip with no toes (the Daz release: the foot ends at the ankle's end site) says
+            // nothing of the foot's shape; the subject still has one: the default subject's
+            // foot, scaled with the measured leg. Left at the ankle, all three contact points
+            // would be one point and the foot could not roll from heel to toe.
+            const Segment calf = foot == 0 ? Segment::LCalf : Segment::RCalf;
+            const Segment hindfoot = foot == 0 ? Segment::LHindfoot : Segment::RHindfoot;
+            const auto leg = [&](const Dimensions& dims) {  // hip to ankle
+                return dims.offsetM[static_cast<std::size_t>(idx(calf))].norm() +
+                       dims.offsetM[static_cast<std::size_t>(idx(hindfoot))].norm();
+            };
+            const double k = leg(d) / leg(model);
+            d.offsetM[toes] = model.offsetM[toes] * k;
+            const auto& modelFoot = foot == 0 ? model.leftFootPointM : model.rightFootPointM;
+            for (std::size_t i = 0; i < fp.size(); ++i) {
+                fp[i] = modelFoot[i] * k;
+            }
+            continue;
+        }
+        const Vec3d ball = d.offsetM[toes];
+        const Vec3d horiz(ball.x(), 0, ball.z());
         fp[0] = Vec3d(0, ball.y(), 0) - 0.3 * horiz;  // heel: behind the ankle
         fp[1] = ball;
         fp[2] = ball + 0.4 * horiz;  // toe tip

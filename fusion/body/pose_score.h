@@ -98,8 +98,9 @@ private:
 
 // The subject's skeleton measured from true frames: each bone vector in its parent's frame,
 // averaged over the frames (segments made of several mocap joints are not perfectly rigid), the
-// foot contact points from the foot's bone; the rest (end sites, masses) from the default
-// subject. frames must not be empty.
+// foot contact points from the foot's bone (a clip with no toes: the default subject's foot,
+// scaled with the measured leg); the rest (end sites, masses) from the default subject. frames
+// must not be empty.
 Dimensions measuredDimensions(const std::vector<BodyTruth>& frames);
 
 // The per-joint tables (markdown; the 21 segments' joints, then the paper's 17) and the root's

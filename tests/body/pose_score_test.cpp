@@ -129,5 +129,41 @@ TEST(PoseScore, ASparseSuitIsScoredOverTheSegmentsItMeasures) {
     EXPECT_EQ(formatScoreTable(a).find("not measured"), std::string::npos);
 }
 
+TEST(PoseScore, AClipWithNoToesStillGivesTheSubjectAFootToRollOn) {
+    // A rig whose foot ends at the ankle (the Daz release of the CMU clips maps no toes: their
+    // segment sits on the ankle) measures no foot. The contact points are the default subject's
+    // foot scaled with the measured leg: a heel behind the ankle and a ball and toe ahead of it,
+    // all below it, not three copies of the ankle (the root tracker could not roll the foot
+    // then: the run clip's root fell 43 % of its path short).
+    board::SubjectConfig tall;
+    tall.heightM = 1.75 * 1.2;  // the measured subject: a fifth taller than the default one
+    const Dimensions model = *dimensionsFromSubject(board::SubjectConfig{});
+    Pose p;
+    p.qLocal = reference();
+    worldFromLocal(p);
+    forwardKinematics(*dimensionsFromSubject(tall), Vec3d(0, 1.1, 0), p);
+    BodyTruth t = truthOf(p);
+    t.positionM[idx(S::LMiddistal)] = t.positionM[idx(S::LHindfoot)];
+    t.positionM[idx(S::RMiddistal)] = t.positionM[idx(S::RHindfoot)];
+    const Dimensions d = measuredDimensions({t});
+    for (int foot = 0; foot < 2; ++foot) {
+        const auto& fp = foot == 0 ? d.leftFootPointM : d.rightFootPointM;
+        const auto& mp = foot == 0 ? model.leftFootPointM : model.rightFootPointM;
+        const auto toes = static_cast<std::size_t>(idx(foot == 0 ? S::LMiddistal : S::RMiddistal));
+        EXPECT_LT(fp[0].z(), -0.02) << foot;  // heel behind the ankle
+        EXPECT_GT(fp[1].z(), 0.08) << foot;   // ball ahead
+        EXPECT_GT(fp[2].z(), fp[1].z() + 0.02) << foot;
+        for (std::size_t i = 0; i < fp.size(); ++i) {
+            EXPECT_LT(fp[i].y(), -0.03) << foot << " " << i;  // the sole below the ankle
+            EXPECT_TRUE(fp[i].isApprox(1.2 * mp[i], 1e-9)) << foot << " " << i;
+        }
+        EXPECT_TRUE(d.offsetM[toes].isApprox(1.2 * model.offsetM[toes], 1e-9)) << foot;
+    }
+    // A clip with toes keeps its own: the ball where the toes are.
+    const Dimensions withToes = measuredDimensions({truthOf(p)});
+    EXPECT_TRUE(withToes.leftFootPointM[1].isApprox(
+        withToes.offsetM[static_cast<std::size_t>(idx(S::LMiddistal))], 1e-9));
+}
+
 }  // namespace
 }  // namespace caphub::body
