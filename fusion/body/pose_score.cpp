@@ -154,11 +154,10 @@ Dimensions measuredDimensions(const std::vector<BodyTruth>& frames) {
             // nothing of the foot's shape; the subject still has one: the default subject's
             // foot, scaled with the measured leg. Left at the ankle, all three contact points
             // would be one point and the foot could not roll from heel to toe.
+            const Segment thigh = foot == 0 ? Segment::LThigh : Segment::RThigh;
             const Segment calf = foot == 0 ? Segment::LCalf : Segment::RCalf;
-            const Segment hindfoot = foot == 0 ? Segment::LHindfoot : Segment::RHindfoot;
             const auto leg = [&](const Dimensions& dims) {  // hip to ankle
-                return dims.offsetM[static_cast<std::size_t>(idx(calf))].norm() +
-                       dims.offsetM[static_cast<std::size_t>(idx(hindfoot))].norm();
+                return segmentLengthM(dims, thigh) + segmentLengthM(dims, calf);
             };
             const double k = leg(d) / leg(model);
             d.offsetM[toes] = model.offsetM[toes] * k;
