@@ -568,14 +568,17 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
                               : std::string("-");
         };
         out += fmt::format(
-            "\nreprocessed --smooth ({:.2f} s of computing, {:.0f}x real time): mean angle {:.2f} "
-            "deg (live {:.2f}, {}), root drift at the end {:.3f} m (live {:.3f}, {}), max drift "
+            "\nreprocessed --smooth ({:.2f} s of computing, {:.0f}x real time): 17-joint mean "
+            "angle {:.2f} deg (live {:.2f}, {}), root drift at the end {:.3f} m (live {:.3f}, {}), "
+            "max drift "
             "{:.3f} m (live {:.3f})\n",
             r.smoothWallS, r.smoothWallS > 0 ? (r.leadInS + r.clipS) / r.smoothWallS : 0.0,
-            r.smoothed->meanAngleDeg, r.score.meanAngleDeg,
-            change(r.smoothed->meanAngleDeg, r.score.meanAngleDeg), r.smoothed->finalDriftM,
-            r.score.finalDriftM, change(r.smoothed->finalDriftM, r.score.finalDriftM),
-            r.smoothed->maxDriftM, r.score.maxDriftM);
+            r.smoothed->independentMeanAngleDeg, r.score.independentMeanAngleDeg,
+            change(r.smoothed->independentMeanAngleDeg, r.score.independentMeanAngleDeg),
+            r.smoothed->finalDriftM, r.score.finalDriftM,
+            change(r.smoothed->finalDriftM, r.score.finalDriftM), r.smoothed->maxDriftM,
+            r.score.maxDriftM);
+        out += "\n" + body::formatScoreTable(*r.smoothed);
     }
     return out;
 }

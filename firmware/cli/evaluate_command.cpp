@@ -148,13 +148,14 @@ std::string smoothTable(const std::vector<EvaluateResult>& results,
             return before > 0 ? fmt::format("{:+.1f}%", (now / before - 1) * 100)
                               : std::string("-");
         };
-        out +=
-            fmt::format("{:<34} {:>4} {:>10.2f} {:>10.2f} {:>8} {:>10.3f} {:>10.3f} {:>8}\n",
-                        r.clip, seeds[i], r.score.meanAngleDeg, r.smoothed->meanAngleDeg,
-                        pct(r.smoothed->meanAngleDeg, r.score.meanAngleDeg), r.score.finalDriftM,
-                        r.smoothed->finalDriftM, pct(r.smoothed->finalDriftM, r.score.finalDriftM));
-        la += r.score.meanAngleDeg;
-        sa += r.smoothed->meanAngleDeg;
+        out += fmt::format(
+            "{:<34} {:>4} {:>10.2f} {:>10.2f} {:>8} {:>10.3f} {:>10.3f} {:>8}\n", r.clip, seeds[i],
+            r.score.independentMeanAngleDeg, r.smoothed->independentMeanAngleDeg,
+            pct(r.smoothed->independentMeanAngleDeg, r.score.independentMeanAngleDeg),
+            r.score.finalDriftM, r.smoothed->finalDriftM,
+            pct(r.smoothed->finalDriftM, r.score.finalDriftM));
+        la += r.score.independentMeanAngleDeg;
+        sa += r.smoothed->independentMeanAngleDeg;
         ld += r.score.finalDriftM;
         sd += r.smoothed->finalDriftM;
         ++n;

@@ -220,10 +220,12 @@ std::string formatScoreTable(const PoseScore& s) {
     // A path of a few millimetres (jumping on the spot) makes no meaningful percentage.
     const std::string percent =
         s.walkedM >= 0.05 ? fmt::format(" ({:.2f} %)", 100 * s.finalDriftM / s.walkedM) : "";
+    const std::string stances =
+        s.stanceChanges >= 0 ? fmt::format(", {} stance changes", s.stanceChanges) : "";
     out += fmt::format(
-        "root: true horizontal path {:.3f} m, final drift {:.3f} m{}, max drift {:.3f} m, "
-        "{} stance changes; height error mean {:.3f} m, max {:.3f} m\n",
-        s.walkedM, s.finalDriftM, percent, s.maxDriftM, s.stanceChanges, s.meanHeightErrorM,
+        "root: true horizontal path {:.3f} m, final drift {:.3f} m{}, max drift {:.3f} m{}; "
+        "height error mean {:.3f} m, max {:.3f} m\n",
+        s.walkedM, s.finalDriftM, percent, s.maxDriftM, stances, s.meanHeightErrorM,
         s.maxHeightErrorM);
     if (!rootTranslationMeasured(s.measured)) {
         out +=

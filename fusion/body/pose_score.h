@@ -61,7 +61,9 @@ struct PoseScore {
     // absolute error, m. Jumps and crouches show here.
     double meanHeightErrorM = 0;
     double maxHeightErrorM = 0;
-    int stanceChanges = 0;  // filled in by the caller (the solver's root tracker)
+    // Filled in by the caller (the solver's root tracker); -1: not known (a reprocessed take's,
+    // scored from its records), and not printed.
+    int stanceChanges = -1;
 };
 
 // Whether the paper's independent joint j rests on measured segments only.
