@@ -570,8 +570,7 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         out += fmt::format(
             "\nreprocessed --smooth ({:.2f} s of computing, {:.0f}x real time): 17-joint mean "
             "angle {:.2f} deg (live {:.2f}, {}), root drift at the end {:.3f} m (live {:.3f}, {}), "
-            "max drift "
-            "{:.3f} m (live {:.3f})\n",
+            "max drift {:.3f} m (live {:.3f})\n",
             r.smoothWallS, r.smoothWallS > 0 ? (r.leadInS + r.clipS) / r.smoothWallS : 0.0,
             r.smoothed->independentMeanAngleDeg, r.score.independentMeanAngleDeg,
             change(r.smoothed->independentMeanAngleDeg, r.score.independentMeanAngleDeg),

@@ -119,11 +119,10 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
         gridStarted_ = true;
         nextGrid_ = t;
     }
-    if (!calibrated_ && headingResetAt_ && t >= *headingResetAt_) {
+    if (!calibrated_) {
         // Its moment has come with nothing to turn: it fails now, rather than wait and turn a
         // calibration made after it was asked for.
-        applyHeadingReset(*headingResetAt_, events);
-        headingResetAt_.reset();
+        headingResetIfDue(t, events);
     }
 
     if (request_) {
@@ -178,10 +177,7 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
             PelvisForce{t, q.cast<double>() * u.specificForceMps2.cast<double>()};
         ++pelvisCount_;
     }
-    if (headingResetAt_ && t >= *headingResetAt_) {
-        applyHeadingReset(*headingResetAt_, events);
-        headingResetAt_.reset();
-    }
+    headingResetIfDue(t, events);
     return events;
 }
 
@@ -612,6 +608,13 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
         gridStarted_ = true;
         nextGrid_ = t;
         gridWaits_ = true;
+    }
+}
+
+void BodyTracker::headingResetIfDue(Timestamp t, TrackerEvents& events) {
+    if (headingResetAt_ && t >= *headingResetAt_) {
+        applyHeadingReset(*headingResetAt_, events);
+        headingResetAt_.reset();
     }
 }
 

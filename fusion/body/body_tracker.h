@@ -261,6 +261,8 @@ private:
     void completeCalibration(Timestamp t, TrackerEvents& events);
     // The calibration from its inputs (a heading reset done since, if any, added by the caller).
     Result<BodyCalibration> computeCalibration(const CalibrationInput& in, std::int64_t tNs) const;
+    // The heading reset asked for, once t has reached its moment.
+    void headingResetIfDue(Timestamp t, TrackerEvents& events);
     void applyHeadingReset(Timestamp t, TrackerEvents& events);
     // A sensor's orientation at t: between its two latest samples, or carried on past the latest
     // at its gyroscope's rate for at most one sample interval. False when it has none.
