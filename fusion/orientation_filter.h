@@ -163,6 +163,11 @@ public:
     // clipped: the chip's raw rate reached its full scale on some axis, so the rate is only a
     // lower bound and the strapdown lost an unknown rotation; counted (clipEvents) so that the
     // error that follows can be told from the filter's own.
+    // The three updates are defined [[gnu::flatten]]: every helper they call (products,
+    // rotations, the series exp, the renormalisation) is inlined into them. At -O2 GCC kept
+    // smallRotation and renormalized out of line, and a full update on real data cost 159 ns
+    // instead of 111 (docs/fusion.md, "Speed"). No result changes: fixed point is integer
+    // arithmetic, and float is built without contraction (ISO C++, -ffp-contract=off).
     void updateGyr(const Vec3<Gyr>& gyr, bool clipped = false);
     // linAccEarth: the sensor's linear acceleration in the earth frame (ENU, m/s^2) when it is
     // known from outside, such as the body's motion from its foot contacts; it is taken out of
@@ -305,7 +310,7 @@ void OrientationFilter<S>::setState(const FilterState<S>& s) {
 }
 
 template <typename S>
-void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
+[[gnu::flatten]] void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
     if (!configured_ || !withinLimit(gyr, coeffs_.gyrLimit)) [[unlikely]] {
         reject(rejections_.gyr);
         return;
@@ -332,7 +337,8 @@ void OrientationFilter<S>::updateGyr(const Vec3<Gyr>& gyr, bool clipped) {
 }
 
 template <typename S>
-void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc, const Vec3<Acc>& linAccEarthIn) {
+[[gnu::flatten]] void OrientationFilter<S>::updateAcc(const Vec3<Acc>& acc,
+                                                      const Vec3<Acc>& linAccEarthIn) {
     if (!configured_ || !withinLimit(acc, coeffs_.accLimit)) [[unlikely]] {
         reject(rejections_.acc);
         return;
@@ -414,7 +420,7 @@ void OrientationFilter<S>::correctInclination(const Vec3<Unit>& u) {
 }
 
 template <typename S>
-void OrientationFilter<S>::updateMag(const Vec3<Mag>& magIn) {
+[[gnu::flatten]] void OrientationFilter<S>::updateMag(const Vec3<Mag>& magIn) {
     if (!configured_ || !withinLimit(magIn, coeffs_.magLimit)) [[unlikely]] {
         reject(rejections_.mag);
         state_.magUsed = false;

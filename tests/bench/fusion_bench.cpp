@@ -1,10 +1,15 @@
 // Cost of one full 9-axis update (gyroscope + accelerometer + magnetometer) of the orientation
-// filter, float and fixed point, on a buffer of hand-held-like motion.
+// filter, float and fixed point: on a buffer of synthetic hand-held-like motion, and on real
+// recorded data (the shipped excerpt of BROAD trial 21, fast combined motion at 285.7 Hz), whose
+// noise, rests and field changes take the branches as a person's motion does.
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <vector>
 
 #include <benchmark/benchmark.h>
 
+#include "firmware/io/broad_csv.h"
 #include "fusion/orientation_filter.h"
 
 namespace caphub::fusion {
@@ -38,17 +43,44 @@ Inputs<S> makeInputs() {
     return in;
 }
 
+// The shipped excerpt of BROAD trial 21 (6000 samples, 21 s) in the filter's scalar types. The
+// file is part of the source tree: a benchmark that cannot read it stops with the reason.
 template <typename S>
-void fullUpdate(benchmark::State& state) {
-    const Inputs<S> in = makeInputs<S>();
+Inputs<S> loadBroadExcerpt() {
+    const char* path = CAPHUB_SOURCE_DIR "/tests/data/broad/21_fast_combined_excerpt.csv.gz";
+    auto trial = firmware::readBroadCsv(path);
+    if (!trial) {
+        std::fprintf(stderr, "%s\n", trial.error().message.c_str());
+        std::exit(1);
+    }
+    Inputs<S> in;
+    for (const ImuSample& x : trial->samples) {
+        in.gyr.push_back(
+            fromDoubleVec<typename S::Gyr>(x.gyrRadS.x(), x.gyrRadS.y(), x.gyrRadS.z()));
+        in.acc.push_back(
+            fromDoubleVec<typename S::Acc>(x.accMps2.x(), x.accMps2.y(), x.accMps2.z()));
+        in.mag.push_back(fromDoubleVec<typename S::Mag>(x.magUt.x(), x.magUt.y(), x.magUt.z()));
+    }
+    return in;
+}
+
+// One full update per iteration, in the order of the samples. At the end of the buffer the
+// filter starts again from its reset state (once per 4096 or 6000 updates), so that the data's
+// own sequence is what the filter sees, never a jump from its last sample to its first.
+template <typename S>
+void fullUpdate(benchmark::State& state, const Inputs<S>& in) {
     OrientationFilter<S> f;
+    const std::size_t n = in.gyr.size();
     std::size_t i = 0;
     for (auto _ : state) {
         f.updateGyr(in.gyr[i]);
         f.updateAcc(in.acc[i]);
         f.updateMag(in.mag[i]);
         benchmark::DoNotOptimize(f.state().qCorr);
-        i = (i + 1) & 4095;
+        if (++i == n) [[unlikely]] {
+            i = 0;
+            f.resetState();
+        }
     }
     state.SetItemsProcessed(state.iterations());
     state.counters["ns_per_update"] =
@@ -57,13 +89,21 @@ void fullUpdate(benchmark::State& state) {
 }
 
 void floatFullUpdate(benchmark::State& s) {
-    fullUpdate<FloatTypes>(s);
+    fullUpdate<FloatTypes>(s, makeInputs<FloatTypes>());
 }
 void fixedFullUpdate(benchmark::State& s) {
-    fullUpdate<FixedTypes>(s);
+    fullUpdate<FixedTypes>(s, makeInputs<FixedTypes>());
+}
+void floatFullUpdateBroad21(benchmark::State& s) {
+    fullUpdate<FloatTypes>(s, loadBroadExcerpt<FloatTypes>());
+}
+void fixedFullUpdateBroad21(benchmark::State& s) {
+    fullUpdate<FixedTypes>(s, loadBroadExcerpt<FixedTypes>());
 }
 BENCHMARK(floatFullUpdate);
 BENCHMARK(fixedFullUpdate);
+BENCHMARK(floatFullUpdateBroad21);
+BENCHMARK(fixedFullUpdateBroad21);
 
 }  // namespace
 }  // namespace caphub::fusion
