@@ -14,6 +14,7 @@
 #include "firmware/reprocess.h"
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/hub.h"
+#include "firmware/runtime/mag_state.h"
 #include "fusion/body/kinematics.h"
 #include "fusion/body/pose_solver.h"
 #include "fusion/body/skeleton.h"
@@ -208,69 +209,6 @@ MountingErrors mountingErrors(
     return m;
 }
 
-// The online hard-iron state file: "name n1 ... n24" per line, '#' comments.
-static Result<void> loadMagState(const std::filesystem::path& path, const board::Board& b,
-                                 FusionStage& fusion) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) {
-        return {};  // the first run: nothing to start from
-    }
-    std::ifstream in(path);
-    if (!in) {
-        return Error{EINVAL, fmt::format("--mag-state: cannot read '{}'", path.string())};
-    }
-    std::string line;
-    int lineNo = 0;
-    while (std::getline(in, line)) {
-        ++lineNo;
-        const auto first = line.find_first_not_of(" \t\r");
-        if (first == std::string::npos || line[first] == '#') {
-            continue;
-        }
-        const auto nameEnd = line.find_first_of(" \t", first);
-        const std::string name = line.substr(first, nameEnd - first);
-        const auto state = nameEnd == std::string::npos
-                               ? std::nullopt
-                               : fusion::parseHardIronState(line.substr(nameEnd));
-        if (!state) {
-            return Error{EINVAL, fmt::format("{}:{}: expected a sensor name and 19 finite numbers "
-                                             "(weight ... samples)",
-                                             path.string(), lineNo)};
-        }
-        bool known = false;
-        for (std::size_t i = 0; i < b.sensors.size(); ++i) {
-            if (b.sensors[i].name == name) {
-                known = true;
-                fusion.setMagEstimatorState(static_cast<int>(i), *state);
-            }
-        }
-        if (!known) {
-            return Error{EINVAL, fmt::format("{}:{}: unknown sensor '{}' (board '{}')",
-                                             path.string(), lineNo, name, b.name)};
-        }
-    }
-    return {};
-}
-
-static Result<void> saveMagState(const std::filesystem::path& path, const board::Board& b,
-                                 const FusionStage& fusion) {
-    std::string text =
-        "# caphub online hard-iron estimators (docs/fusion.md): sensor, weight, sum m (3), "
-        "sum m m^T (9), sum |m|^2 m (3), sum |m|^2, sum |m|^4, samples\n";
-    for (std::size_t i = 0; i < b.sensors.size(); ++i) {
-        if (const auto s = fusion.magEstimatorState(static_cast<int>(i))) {
-            text += b.sensors[i].name + " " + fusion::formatHardIronState(*s) + "\n";
-        }
-    }
-    std::ofstream out(path, std::ios::trunc);
-    out << text;
-    out.close();
-    if (!out) {
-        return Error{EIO, fmt::format("--mag-state: cannot write '{}'", path.string())};
-    }
-    return {};
-}
-
 Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
     if (!board::allBusesSimulated(b)) {
         return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
@@ -332,7 +270,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     scoring.follow(hub.poses());
     if (!o.magState.empty()) {
         if (auto loaded = loadMagState(o.magState, b, hub.fusion()); !loaded) {
-            return loaded.error();
+            return Error{loaded.error().code, "--mag-state: " + loaded.error().message};
         }
     }
     const auto wallStart = std::chrono::steady_clock::now();
@@ -343,8 +281,9 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     const BodyStage& bodyStage = hub.body();
     const FusionStage& fusion = hub.fusion();
     if (!o.magState.empty()) {
-        if (auto saved = saveMagState(o.magState, b, fusion); !saved) {
-            return saved.error();
+        if (auto saved = writeMagStateFile(o.magState, magStateText(b, magStates(b, fusion)));
+            !saved) {
+            return Error{saved.error().code, "--mag-state: " + saved.error().message};
         }
     }
     body::PoseScorer& scorer = scoring.scorer();

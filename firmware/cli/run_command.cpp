@@ -45,6 +45,7 @@ struct RunOptions {
     double previewFps = 10;
     bool noPreview = false;
     std::string statusFile;            // empty: defaultStatusPath()
+    std::string magState;              // empty: the magnetometer estimates are not kept
     std::vector<std::string> streams;  // KIND:HOST:PORT[@RATE]; none: the board's outputs
     bool noStream = false;
 };
@@ -191,6 +192,7 @@ int run(const RunOptions& o) {
     }
     ho.streams = streams;
     ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    ho.magStatePath = o.magState;
     fs::path recordingPath;
     if (!o.noRecord) {
         const fs::path dir =
@@ -328,6 +330,10 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--status-file", o->statusFile,
                     "Where to keep the live status for `caphub status` (default: $CAPHUB_STATUS, "
                     "/run/caphub/status.json, or the temporary folder)");
+    cmd->add_option("--mag-state", o->magState,
+                    "Keep what the magnetometers that the calibration file does not correct learn "
+                    "of their hard and soft iron in this file: read at the start, saved every "
+                    "minute and at the end (docs/fusion.md)");
     cmd->add_option("--stream", o->streams,
                     "Stream the poses live to KIND:HOST:PORT[@RATE], KIND vmc, vrchat or caphub "
                     "(repeatable; e.g. vmc:127.0.0.1:39539@60; default: the board's outputs)");

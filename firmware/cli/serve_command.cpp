@@ -184,6 +184,13 @@ int runServe(const ServeOptions& o) {
         ho.threads.realtimePriority = o.realtime;
     }
     ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    // What the magnetometers the calibration does not correct learn is kept on the hub: the
+    // next start is magnetic from its first sample (docs/fusion.md, "Persistence").
+    {
+        std::error_code ec;
+        fs::create_directories(stateDir, ec);
+    }
+    ho.magStatePath = stateDir / "mag-estimates.txt";
     ho.recordings = o.recordings.empty() ? fs::path(b.outputs.recordings) : fs::path(o.recordings);
     ho.boardText = setup->boardText;
     ho.softwareVersion = versionLine();

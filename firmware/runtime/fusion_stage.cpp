@@ -155,6 +155,13 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         o.decided = true;
     }
     o.estimator.add(magUt);
+    if (f.state().inclinationInit) {
+        // The sensor's up in its own frame, from the filter's tilt (its heading plays no part):
+        // what the magnetometer's axes are aligned to (OnlineHardIron::addAlignment).
+        const auto q = f.quat();
+        const Eigen::Quaterniond qe(q.w, q.x, q.y, q.z);
+        o.estimator.addAlignment(magUt, qe.normalized().conjugate() * Eigen::Vector3d::UnitZ());
+    }
     if (++o.sinceSolve >= o.solveEvery) {
         o.sinceSolve = 0;
         o.estimate = o.estimator.refresh();
@@ -194,7 +201,7 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
             }
             return;
         case MagMode::Online:
-            feed(magUt - o.estimate.offsetUt);
+            feed(o.estimate.corrected(magUt));
             return;
         case MagMode::Estimating:
         case MagMode::Calibrated:
@@ -207,7 +214,7 @@ void FusionStage::alignHeading(std::size_t sensor, OnlineMag& o, Filter& f,
     if (!f.state().inclinationInit) {
         return;
     }
-    const Eigen::Vector3d m = magUt - o.estimate.offsetUt;
+    const Eigen::Vector3d m = o.estimate.corrected(magUt);
     const double b = o.estimate.fieldNormUt;
     const auto restart = [&o] {
         o.sumSin = 0;

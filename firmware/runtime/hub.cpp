@@ -55,6 +55,19 @@ Hub::Hub(const board::Board& board, Clock& clock, board::SuitHardware& suit, Hub
     if (options_.solve) {
         capture_.addStage(fusion_);
         capture_.addStage(body_);
+        if (!options_.magStatePath.empty()) {
+            // What an earlier run learnt of the uncalibrated magnetometers; a damaged file is
+            // said and learnt afresh (its next save replaces it).
+            if (auto loaded = loadMagState(options_.magStatePath, board, fusion_); !loaded) {
+                magStateLoadError_ = loaded.error().message;
+                log::logger(log::Category::Firmware)
+                    .warn("magnetometer estimates not loaded, learning afresh: {}",
+                          magStateLoadError_);
+            }
+            magState_ = std::make_unique<MagStateStage>(board, fusion_, options_.magStatePath,
+                                                        options_.magStateEvery);
+            capture_.addStage(*magState_);
+        }
     }
     for (PipelineStage* stage : options_.stages) {
         capture_.addStage(*stage);

@@ -19,6 +19,7 @@
 #include "firmware/runtime/body_stage.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
+#include "firmware/runtime/mag_state.h"
 #include "firmware/runtime/pose_feed.h"
 #include "firmware/runtime/preview_stage.h"
 #include "firmware/runtime/recorder_stage.h"
@@ -42,6 +43,11 @@ struct HubOptions {
     // or instead of takes; may be null.
     std::unique_ptr<RecordingWriter> recordFromStart;
     std::filesystem::path statusPath;  // empty: no status stage
+    // Where the online magnetometer estimates are kept between runs (docs/fusion.md,
+    // "Persistence"): read before the capture, saved every magStateEvery of its clock and at its
+    // end. Empty: not kept.
+    std::filesystem::path magStatePath;
+    Duration magStateEvery = std::chrono::seconds(60);
     ThreadPolicy threads;
     // The preview (optional): the skin and the sinks it renders into.
     std::optional<render::Skin> previewSkin;
@@ -140,6 +146,10 @@ public:
     const std::vector<std::unique_ptr<PoseStream>>& streams() const { return streams_; }
     // Why the preview is off although sinks were given (empty: it is on, or none was asked).
     const std::string& previewError() const { return previewError_; }
+    // The saving of the magnetometer estimates (null: magStatePath not given), and why the saved
+    // ones were not loaded (empty: they were, or there were none: a first run).
+    const MagStateStage* magState() const { return magState_.get(); }
+    const std::string& magStateLoadError() const { return magStateLoadError_; }
 
 private:
     // Runs fn on the pipeline thread and waits for it: an error when the capture is not running
@@ -160,6 +170,8 @@ private:
     std::unique_ptr<StatusStage> status_;
     std::unique_ptr<PreviewStage> preview_;
     std::string previewError_;
+    std::unique_ptr<MagStateStage> magState_;
+    std::string magStateLoadError_;
     std::vector<std::unique_ptr<PoseStream>> streams_;
     std::mutex commandMutex_;       // one command at a time
     std::optional<TakeInfo> take_;  // guarded by commandMutex_

@@ -35,26 +35,15 @@ StatusStage::StatusStage(const board::Board& board, const Capture& capture,
       clock_(clock),
       samples_(board.sensors.size(), 0),
       samplesAtLastWrite_(board.sensors.size(), 0),
-      events_(board.sensors.size(), 0) {
+      events_(board.sensors.size(), 0),
+      writer_("caphub-status",
+              [this](const StatusSnapshot& snap) { writeFile(statusJson(snap)); }) {
     for (const auto& load : board::computeBusLoads(board)) {
         plannedLoad_.push_back(load.utilisation);
     }
-    writer_ = std::thread([this] {
-        (void)applyToThisThread(ThreadPolicy{}, "caphub-status");
-        writerLoop();
-    });
 }
 
-StatusStage::~StatusStage() {
-    {
-        std::lock_guard lock(mutex_);
-        stopping_ = true;
-    }
-    wake_.notify_all();
-    if (writer_.joinable()) {
-        writer_.join();
-    }
-}
+StatusStage::~StatusStage() = default;
 
 void StatusStage::onSample(const SensorSample& s) {
     const auto i = static_cast<std::size_t>(s.sensor);
@@ -90,19 +79,15 @@ void StatusStage::finish(Timestamp now) {
         first_ = false;
     }
     publish(now, false);
-    std::unique_lock lock(mutex_);
-    const std::uint64_t target = published_;
-    doneWake_.wait(lock, [&] { return written_ >= target || stopping_; });
+    writer_.flush();
 }
 
 StatusSnapshot StatusStage::latest() const {
-    std::lock_guard lock(mutex_);
-    return latest_;
+    return writer_.latest();
 }
 
 std::uint64_t StatusStage::written() const {
-    std::lock_guard lock(mutex_);
-    return written_;
+    return writer_.written();
 }
 
 StatusSnapshot StatusStage::snapshot(Timestamp now, bool running) const {
@@ -159,30 +144,7 @@ void StatusStage::publish(Timestamp now, bool running) {
     StatusSnapshot s = snapshot(now, running);
     lastWrite_ = now;
     samplesAtLastWrite_ = samples_;
-    {
-        std::lock_guard lock(mutex_);
-        latest_ = std::move(s);
-        ++published_;
-    }
-    wake_.notify_one();
-}
-
-void StatusStage::writerLoop() {
-    std::uint64_t seen = 0;
-    std::unique_lock lock(mutex_);
-    for (;;) {
-        wake_.wait(lock, [&] { return stopping_ || published_ != seen; });
-        if (published_ == seen) {
-            return;  // stopping, and everything published is written
-        }
-        seen = published_;
-        const StatusSnapshot s = latest_;
-        lock.unlock();
-        writeFile(statusJson(s));
-        lock.lock();
-        written_ = seen;
-        doneWake_.notify_all();
-    }
+    writer_.publish(std::move(s));
 }
 
 std::string statusJson(const StatusSnapshot& s) {

@@ -6,18 +6,16 @@
 // the pipeline never formats text or touches the disk.
 #pragma once
 
-#include <condition_variable>
 #include <filesystem>
-#include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "firmware/runtime/latency_window.h"
+#include "firmware/runtime/latest_writer.h"
 #include "firmware/runtime/recorder_stage.h"
 
 namespace caphub::firmware {
@@ -89,7 +87,6 @@ public:
 private:
     StatusSnapshot snapshot(Timestamp now, bool running) const;
     void publish(Timestamp now, bool running);
-    void writerLoop();
     void writeFile(const std::string& text);
 
     const board::Board& board_;
@@ -107,17 +104,9 @@ private:
     Timestamp lastWrite_{};
     bool first_ = true;
     LatencyWindow latency_{4096};
-    // Between the pipeline and the writer thread.
-    mutable std::mutex mutex_;
-    std::condition_variable wake_;
-    std::condition_variable doneWake_;
-    StatusSnapshot latest_;
-    std::uint64_t published_ = 0;
-    std::uint64_t written_ = 0;
-    bool stopping_ = false;
-    std::thread writer_;
     // The writer thread's side.
-    std::string error_;  // why the last write failed, reported once
+    std::string error_;                    // why the last write failed, reported once
+    LatestWriter<StatusSnapshot> writer_;  // last: its thread writes with the members above
 };
 
 // Where the running hub writes its status, and `caphub status` reads it: $CAPHUB_STATUS, else

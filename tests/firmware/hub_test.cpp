@@ -4,6 +4,8 @@
 #include "firmware/runtime/hub.h"
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -394,6 +396,111 @@ TEST(Hub, TakeNamesAreCheckedAndDated) {
     }
     EXPECT_FALSE(takeFileName(std::string(65, 'a'), when).ok());
     EXPECT_TRUE(takeFileName(std::string(64, 'a'), when).ok());
+}
+
+// What the magnetometers that no calibration corrects learn of their hard and soft iron is kept
+// between runs (docs/fusion.md, "Persistence"): saved every magStateEvery of the capture's clock
+// and at its end, loaded at the next start, so that it goes on learning from there.
+TEST(Hub, KeepsTheMagnetometerEstimatesBetweenRuns) {
+    auto loaded = board::loadBoardFile(CAPHUB_SOURCE_DIR "/board/sim-upper10.toml");
+    ASSERT_TRUE(loaded.ok());
+    const board::Board board = *loaded.board;
+    const fs::path dir = fs::path(::testing::TempDir()) / "caphub-hub-magstate";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path path = dir / "mag-estimates.txt";
+    struct Run {
+        std::vector<std::uint64_t> samplesAtStart;
+        std::vector<std::uint64_t> samplesAtEnd;
+        std::uint64_t written = 0;
+        std::string loadError;
+        std::string saveError;
+    };
+    const auto runOnce = [&](const fs::path& statePath, Duration d) {
+        SimulatedClock clock(timestampFromNs(1'000'000'000));
+        auto suit = board::sim::buildVirtualSuit(board, clock, nullptr);
+        EXPECT_TRUE(suit.ok());
+        HubOptions o;
+        o.mode = Capture::Mode::Stepped;
+        o.magStatePath = statePath;
+        o.magStateEvery = seconds(2);
+        Hub hub(board, clock, *suit, std::move(o));
+        Run r;
+        const auto samples = [&] {
+            std::vector<std::uint64_t> n;
+            for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+                const auto st = hub.fusion().magEstimatorState(static_cast<int>(i));
+                n.push_back(st ? st->samples : 0);
+            }
+            return n;
+        };
+        r.samplesAtStart = samples();
+        r.loadError = hub.magStateLoadError();
+        hub.runStepped(d);
+        r.samplesAtEnd = samples();
+        r.written = hub.magState()->written();
+        r.saveError = hub.magState()->error();
+        return r;
+    };
+    // Every line of the file a state of one of the board's sensors.
+    const auto stateLines = [&] {
+        std::ifstream in(path);
+        std::string line;
+        int n = 0;
+        while (std::getline(in, line)) {
+            if (line.empty() || line[0] == '#') {
+                continue;
+            }
+            const auto space = line.find(' ');
+            EXPECT_TRUE(fusion::parseHardIronState(line.substr(space))) << line.substr(0, 40);
+            ++n;
+        }
+        return n;
+    };
+
+    const Run first = runOnce(path, seconds(9));
+    EXPECT_EQ(first.loadError, "");  // no file yet: a first run
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        EXPECT_EQ(first.samplesAtStart[i], 0u) << board.sensors[i].name;
+        EXPECT_GT(first.samplesAtEnd[i], 100u) << board.sensors[i].name;
+    }
+    EXPECT_GE(first.written, 4u);  // every 2 s of the 9, and the end
+    EXPECT_EQ(first.saveError, "");
+    EXPECT_EQ(stateLines(), static_cast<int>(board.sensors.size()));
+
+    const Run second = runOnce(path, seconds(3));
+    EXPECT_EQ(second.loadError, "");
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        // Started where the first run ended, and learnt on.
+        EXPECT_EQ(second.samplesAtStart[i], first.samplesAtEnd[i]) << board.sensors[i].name;
+        EXPECT_GT(second.samplesAtEnd[i], first.samplesAtEnd[i]) << board.sensors[i].name;
+    }
+
+    // A damaged file is said (file and line) and nothing of it is loaded; the capture runs and
+    // its end replaces the file with what it learnt.
+    {
+        std::ifstream in(path);
+        std::stringstream all;
+        all << in.rdbuf();
+        std::string text = all.str();
+        text += board.sensors[0].name + " 1 2 3\n";
+        std::ofstream(path, std::ios::trunc) << text;
+    }
+    const Run damaged = runOnce(path, seconds(2));
+    EXPECT_NE(
+        damaged.loadError.find(path.string() + ":" + std::to_string(board.sensors.size() + 2)),
+        std::string::npos)
+        << damaged.loadError;
+    EXPECT_EQ(damaged.samplesAtStart[0], 0u);
+    EXPECT_EQ(stateLines(), static_cast<int>(board.sensors.size()));
+
+    // A path that is not a regular file is never written over.
+    const fs::path notAFile = dir / "a-directory";
+    fs::create_directories(notAFile);
+    const Run refused = runOnce(notAFile, seconds(1));
+    EXPECT_NE(refused.loadError.find("is a directory"), std::string::npos) << refused.loadError;
+    EXPECT_NE(refused.saveError.find("not a regular file"), std::string::npos) << refused.saveError;
+    EXPECT_TRUE(fs::is_directory(notAFile));
 }
 
 }  // namespace
