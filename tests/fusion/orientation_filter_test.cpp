@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 
 #include <gtest/gtest.h>
 
@@ -207,6 +209,106 @@ TYPED_TEST(OrientationFilterTest, TracksFastRotationAt25RadPerSecond) {
         // Exact gyro data: 50 turns must not cost more than 2 deg (the series exp map is
         // accurate to 1e-6 rad per 0.44 rad step; heading/tilt corrections are slow).
         EXPECT_LT(worst / kDeg, 2.0) << "rate " << rate;
+    }
+}
+
+// Every time constant and noise density is stated per second, so the filter's response in time
+// must not depend on its sample rate (docs/fusion.md, "The same filter at every rate"): a tilt or
+// heading error put into a filter at rest decays as fast, and an acceleration it is not told of
+// tilts it as much and as late, at 50, 100, 200 and 285.7 Hz.
+TYPED_TEST(OrientationFilterTest, ItsResponseInTimeIsTheSameAtEveryRate) {
+    struct Trace {
+        std::vector<double> t, inclDeg, headDeg;
+    };
+    // Noise-free rest at `rateHz` for 40 s; after 3 s the state's qCorr is turned by `turn`
+    // (earth frame). The errors against the truth from then on.
+    const auto trace = [this](double rateHz, const Quatd& turn,
+                              const std::function<Vec3d(double)>& linAcc) {
+        test::SynthConfig c;
+        c.rateHz = rateHz;
+        c.gyrNoiseRadS = 0.0;
+        c.accNoiseMps2 = 0.0;
+        c.magNoiseUt = 0.0;
+        c.linearAccEarth = linAcc;
+        const Quatd q0 = fromAxisAngle<double>(Vec3d(0.3, -0.2, 1.0), 40.0 * kDeg);
+        const auto run = test::synthesize(c, q0, 40.0, [](double) { return Vec3d::Zero(); });
+        OrientationFilter<TypeParam> f(this->params(rateHz));
+        using U = typename TypeParam::Unit;
+        Trace out;
+        for (std::size_t i = 0; i < run.samples.size(); ++i) {
+            const ImuSample& x = run.samples[i];
+            if (i == static_cast<std::size_t>(3.0 * rateHz)) {
+                auto st = f.state();
+                const Quatd qc(toDouble(st.qCorr.w), toDouble(st.qCorr.x), toDouble(st.qCorr.y),
+                               toDouble(st.qCorr.z));
+                const Quatd q = (turn * qc).normalized();
+                st.qCorr = {fromDouble<U>(q.w()), fromDouble<U>(q.x()), fromDouble<U>(q.y()),
+                            fromDouble<U>(q.z())};
+                f.setState(st);
+            }
+            f.updateGyr(fromDoubleVec<typename TypeParam::Gyr>(x.gyrRadS.x(), x.gyrRadS.y(),
+                                                               x.gyrRadS.z()));
+            f.updateAcc(fromDoubleVec<typename TypeParam::Acc>(x.accMps2.x(), x.accMps2.y(),
+                                                               x.accMps2.z()));
+            f.updateMag(
+                fromDoubleVec<typename TypeParam::Mag>(x.magUt.x(), x.magUt.y(), x.magUt.z()));
+            if (x.tS >= 3.0) {
+                const auto q = f.quat();
+                const Quatd e(toDouble(q.w), toDouble(q.x), toDouble(q.y), toDouble(q.z));
+                out.t.push_back(x.tS - 3.0);
+                out.inclDeg.push_back(test::inclinationDeg(e, run.truth[i]));
+                out.headDeg.push_back(test::headingDeg(e, run.truth[i]));
+            }
+        }
+        return out;
+    };
+    // When a series first falls below `level` (s from the injection; 1e9: never).
+    const auto firstBelow = [](const Trace& tr, const std::vector<double>& v, double level) {
+        for (std::size_t i = 0; i < v.size(); ++i) {
+            if (v[i] < level) {
+                return tr.t[i];
+            }
+        }
+        return 1e9;
+    };
+    const auto noAcc = [](double) { return Vec3d::Zero(); };
+    // 2 m/s^2 east for 1 s from the injection on, not told to the filter.
+    const auto push = [](double t) {
+        return t >= 3.0 && t < 4.0 ? Vec3d(2.0, 0.0, 0.0) : Vec3d::Zero();
+    };
+    struct Response {
+        double tiltDecayS, headingDecayS, pushPeakDeg, pushPeakAtS;
+    };
+    const auto respond = [&](double rateHz) {
+        Response r{};
+        const Trace tilt = trace(rateHz, fromAxisAngle<double>(Vec3d::UnitX(), 5.0 * kDeg), noAcc);
+        r.tiltDecayS = firstBelow(tilt, tilt.inclDeg, 5.0 / std::exp(1.0));
+        const Trace head = trace(rateHz, fromAxisAngle<double>(Vec3d::UnitZ(), 20.0 * kDeg), noAcc);
+        r.headingDecayS = firstBelow(head, head.headDeg, 20.0 / std::exp(1.0));
+        const Trace pushed = trace(rateHz, Quatd::Identity(), push);
+        const auto peak = std::max_element(pushed.inclDeg.begin(), pushed.inclDeg.end());
+        r.pushPeakDeg = *peak;
+        r.pushPeakAtS = pushed.t[static_cast<std::size_t>(peak - pushed.inclDeg.begin())];
+        return r;
+    };
+    const Response ref = respond(285.714);
+    ASSERT_LT(ref.tiltDecayS, 10.0);
+    ASSERT_LT(ref.headingDecayS, 39.0);
+    ASSERT_GT(ref.pushPeakDeg, 0.5);  // the push does tilt it: something to compare
+    for (const double rate : {50.0, 100.0, 200.0}) {
+        const Response r = respond(rate);
+        std::printf(
+            "%6.1f Hz: tilt decay %.3f s, heading decay %.2f s, push peak %.3f deg at "
+            "%.3f s (285.7 Hz: %.3f, %.2f, %.3f at %.3f)\n",
+            rate, r.tiltDecayS, r.headingDecayS, r.pushPeakDeg, r.pushPeakAtS, ref.tiltDecayS,
+            ref.headingDecayS, ref.pushPeakDeg, ref.pushPeakAtS);
+        // Within a sample period or 5 %.
+        const double dt = 1.0 / rate;
+        EXPECT_NEAR(r.tiltDecayS, ref.tiltDecayS, std::max(dt, 0.05 * ref.tiltDecayS)) << rate;
+        EXPECT_NEAR(r.headingDecayS, ref.headingDecayS, std::max(dt, 0.05 * ref.headingDecayS))
+            << rate;
+        EXPECT_NEAR(r.pushPeakDeg, ref.pushPeakDeg, 0.05 * ref.pushPeakDeg) << rate;
+        EXPECT_NEAR(r.pushPeakAtS, ref.pushPeakAtS, std::max(dt, 0.05 * ref.pushPeakAtS)) << rate;
     }
 }
 
