@@ -18,6 +18,7 @@
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/evaluation.h"
 #include "firmware/runtime/hub.h"
+#include "hal/core/input_file.h"
 #include "hal/core/log.h"
 #include "render/sinks.h"
 
@@ -145,6 +146,13 @@ int run(const RunOptions& o) {
     for (const auto& spec : o.previews) {
         if (auto p = parsePreviewSpec(spec); !p) {
             fmt::print(stderr, "caphub run: --{}\n", p.error().message);
+            return kExitUsage;
+        }
+    }
+    if (std::error_code ec; !o.magState.empty() && fs::exists(fs::symlink_status(o.magState, ec))) {
+        // A file to read and replace: what is there must be one (a missing one is a first run).
+        if (auto ok = checkInputFile(o.magState); !ok) {
+            fmt::print(stderr, "caphub run: --mag-state: {}\n", ok.error().message);
             return kExitUsage;
         }
     }

@@ -185,6 +185,7 @@ TEST(FileInputs, ADirectoryGivenForAFileIsSaidToBeOne) {
         "run --board sim-upper10 --map " + d + " --duration 1 --no-record --no-preview",
         "run --board sim-upper10 --bvh " + d + " --duration 1 --no-record --no-preview",
         "run --board sim-upper10 --calibration " + d + " --duration 1 --no-record --no-preview",
+        "run --board sim-upper10 --mag-state " + d + " --duration 1 --no-record --no-preview",
         "sim --board sim-upper10 --all --bvh " + d + " --out " + path("sim-out"),
         "sim --board sim-upper10 --all --map " + d + " --out " + path("sim-out"),
         "fusion replay --in " + d,
