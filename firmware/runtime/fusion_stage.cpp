@@ -155,7 +155,7 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         o.decided = true;
     }
     o.estimator.add(magUt);
-    if (f.state().inclinationInit) {
+    if (f.state().inclinationInit && o.estimator.learnsAlignment()) {
         // The sensor's up in its own frame, from the filter's tilt (its heading plays no part):
         // what the magnetometer's axes are aligned to (OnlineHardIron::addAlignment).
         const auto q = f.quat();

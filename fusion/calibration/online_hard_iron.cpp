@@ -3,13 +3,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numbers>
 #include <sstream>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+
+#include "hal/core/angles.h"
 
 namespace caphub::fusion {
 
@@ -66,22 +67,24 @@ Eigen::Matrix3d rotationOf(const Vec3d& r) {
     return Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
 }
 
-// The least-squares fit of the target on the terms `idx` (normal equations from the moments),
-// with `ridge` added to the diagonal of the first `ridged` of them. The coefficients in the order
-// of idx and the sum of squared residuals (weighted); nullopt when the system is singular.
 template <int N>
 struct LsFit {
     Eigen::Matrix<double, N, 1> coef;
     double sse = 0.0;
 };
 
-template <int N>
-std::optional<LsFit<N>> solveFit(const Moments& m, const std::array<int, N>& idx, int ridged,
+// The least-squares fit of the target (the moments' last term) on the terms `idx`, from the
+// normal equations in the moments `m` (sum w t t^T of the terms and the target), with `ridge`
+// added to the diagonal of the first `ridged` of them: the coefficients in the order of idx and
+// the sum of squared residuals on the data (weighted); nullopt when the system is singular.
+template <int N, typename M>
+std::optional<LsFit<N>> solveFit(const M& m, const std::array<int, N>& idx, int ridged,
                                  double ridge) {
+    const int target = static_cast<int>(m.cols()) - 1;
     Eigen::Matrix<double, N, N> g;
     Eigen::Matrix<double, N, 1> r;
     for (int i = 0; i < N; ++i) {
-        r(i) = m(idx[i], kTarget);
+        r(i) = m(idx[i], target);
         for (int j = 0; j < N; ++j) {
             g(i, j) = m(idx[i], idx[j]);
         }
@@ -99,8 +102,8 @@ std::optional<LsFit<N>> solveFit(const Moments& m, const std::array<int, N>& idx
     if (!f.coef.allFinite()) {
         return std::nullopt;
     }
-    // sum (y - psi.c)^2 = sum y^2 - 2 c.r + c^T G c, on the data (not the prior).
-    f.sse = std::max(0.0, m(kTarget, kTarget) - 2.0 * f.coef.dot(r) + f.coef.dot(g * f.coef));
+    // sum (y - t.c)^2 = sum y^2 - 2 c.r + c^T G c, on the data (not the prior).
+    f.sse = std::max(0.0, m(target, target) - 2.0 * f.coef.dot(r) + f.coef.dot(g * f.coef));
     return f;
 }
 
@@ -181,8 +184,8 @@ void OnlineHardIron::add(const Vec3d& m) {
 }
 
 void OnlineHardIron::addAlignment(const Vec3d& m, const Vec3d& up) {
-    if (!params_.fitAlignment || !last_.good || !last_.ellipsoid || !m.allFinite() ||
-        !up.allFinite() || std::abs(up.norm() - 1.0) > 1e-3) {
+    if (!learnsAlignment() || !m.allFinite() || !up.allFinite() ||
+        std::abs(up.norm() - 1.0) > 1e-3) {
         return;
     }
     const Vec3d c = last_.softIron * (m - last_.offsetUt);
@@ -273,31 +276,21 @@ HardIronEstimate OnlineHardIron::estimate() const {
 }
 
 void OnlineHardIron::solveAlignment(HardIronEstimate& e) const {
-    const auto& am = state_.alignMoments;
     if (!params_.fitAlignment || !(state_.alignWeight() >= params_.minAlignWeightS * magRateHz_)) {
         return;
     }
     // c.u + r.(c x u) = s: the fit of -(c.u) on [c x u, -1] with the prior on r as a ridge
     // (dipScatter / alignSigma)^2.
-    const double sigmaR = params_.alignSigmaDeg * std::numbers::pi / 180.0;
+    const double sigmaR = params_.alignSigmaDeg * hal::kDegToRad;
     const double ridge = (params_.dipScatterUt / sigmaR) * (params_.dipScatterUt / sigmaR);
-    Eigen::Matrix4d g = am.topLeftCorner<4, 4>();
-    for (int i = 0; i < 3; ++i) {
-        g(i, i) += ridge;
-    }
-    const Eigen::Vector4d rhs = am.block<4, 1>(0, 4);
-    const Eigen::LDLT<Eigen::Matrix4d> ldlt(g);
-    if (ldlt.info() != Eigen::Success) {
-        return;
-    }
-    const Eigen::Vector4d x = ldlt.solve(rhs);
-    if (!x.allFinite()) {
+    const auto fit = solveFit<4>(state_.alignMoments, {0, 1, 2, 3}, 3, ridge);
+    if (!fit) {
         return;
     }
     // The fit's unknowns are r and s = B sin(dip) (-(c.u) = r.(c x u) - s); (R c).u =
     // c.u + r.(c x u) holds for a small r, and a rotation beyond a few of sigmaR is not a chip's
     // misalignment.
-    const Vec3d r = x.head<3>();
+    const Vec3d r = fit->coef.head<3>();
     if (r.norm() > 4.0 * sigmaR) {
         return;
     }

@@ -125,6 +125,8 @@ public:
     // accelerometer's. Taken only while the last refresh() was good with a fitted soft iron and
     // the corrected reading is of the field's norm.
     void addAlignment(const Vec3d& magUt, const Vec3d& upSensor);
+    // Whether addAlignment takes readings now (the caller may skip computing the up direction).
+    bool learnsAlignment() const { return params_.fitAlignment && last_.good && last_.ellipsoid; }
     // Solves the current sums (a 4x4 and a 9x9 system; call it at a slower rate than add()).
     HardIronEstimate estimate() const;
     // estimate(), kept as the reference of the outlier gate; returns it.
