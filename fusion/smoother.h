@@ -7,6 +7,9 @@
 // backward one's from those after: their halfway rotation (slerp 0.5) averages two nearly
 // independent errors, and neither has a start-up transient (each begins where the other ended).
 // By default only the inclination is averaged, the heading is the causal run's (below).
+// A gyroscope that clips loses an unknown rotation, which the run that passed the clip carries
+// until its corrections remove it (tens of seconds for a turn about up): around a clip each
+// stretch is taken from the run that has not passed it yet (docs/reprocess.md).
 #pragma once
 
 #include <vector>
@@ -42,6 +45,9 @@ struct SmootherOptions {
     // than the forward one's, and a forward run started from the backward run's state inherits
     // its heading at the start (docs/reprocess.md).
     bool forwardHeading = true;
+    // Each run's steady-state error variance (rad^2): where the runs disagree after a clip, the
+    // disagreement beyond this is laid on the run that passed the clip.
+    double steadyVarRad2 = 3.0e-4;
 };
 
 // One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the

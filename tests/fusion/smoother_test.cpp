@@ -1,0 +1,137 @@
+// The non-causal orientation estimate (fusion/smoother.h) on synthetic motion whose orientation
+// is known exactly: a gyroscope that clips loses an unknown rotation, and the estimate must take
+// each stretch of the take from the run that has not yet passed the clip.
+#include "fusion/smoother.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "tests/fusion/synthetic_imu.h"
+
+namespace caphub::fusion {
+namespace {
+
+constexpr double kRateHz = 100.0;
+constexpr double kFullScaleRadS = 2000.0 * 3.14159265358979323846 / 180.0;
+
+// A hand-held wobble for 60 s with a spin about the sensor's z axis at 45 rad/s for 0.3 s from
+// each of `spinsS`: beyond the gyroscope's 2000 deg/s (34.9 rad/s), so the gyroscope reads each
+// spin 10 rad/s short and the strapdown loses about 3 rad.
+struct ClippedTake {
+    test::SynthRun run;
+    std::vector<SmootherSample> samples;
+};
+
+ClippedTake clippedTake(const std::vector<double>& spinsS) {
+    test::SynthConfig c;
+    c.rateHz = kRateHz;
+    const auto base = test::wobble(1.5);
+    const auto omega = [&](double t) -> Vec3d {
+        Vec3d w = base(t);
+        for (double s : spinsS) {
+            if (t >= s && t < s + 0.3) {
+                w.z() += 45.0;
+            }
+        }
+        return w;
+    };
+    ClippedTake take;
+    take.run = test::synthesize(c, Quatd::Identity(), 60.0, omega);
+    for (const ImuSample& in : take.run.samples) {
+        SmootherSample s;
+        s.gyrRadS = in.gyrRadS.cwiseMax(-kFullScaleRadS).cwiseMin(kFullScaleRadS);
+        s.gyrClipped = s.gyrRadS != in.gyrRadS;
+        s.accMps2 = in.accMps2;
+        s.magUt = in.magUt;
+        s.magFresh = true;
+        take.samples.push_back(s);
+    }
+    return take;
+}
+
+FilterParams paramsAt100Hz() {
+    FilterParams p;
+    p.gyrRateHz = p.accRateHz = p.magRateHz = kRateHz;
+    return p;
+}
+
+// Mean angle (deg) between the estimate and the truth over the samples in [fromS, toS).
+double meanErrorDeg(const std::vector<Quatd>& est, const std::vector<Quatd>& truth, double fromS,
+                    double toS) {
+    double sum = 0;
+    int count = 0;
+    for (std::size_t k = static_cast<std::size_t>(fromS * kRateHz);
+         k < std::min(est.size(), static_cast<std::size_t>(toS * kRateHz)); ++k) {
+        sum += est[k].angularDistance(truth[k]) * 180.0 / 3.14159265358979323846;
+        ++count;
+    }
+    return count > 0 ? sum / count : 0.0;
+}
+
+std::vector<Quatd> causalRun(const std::vector<SmootherSample>& samples, const FilterParams& p) {
+    OrientationFilter<FloatTypes> f(p);
+    std::vector<Quatd> out;
+    for (const SmootherSample& s : samples) {
+        f.updateGyr({static_cast<float>(s.gyrRadS.x()), static_cast<float>(s.gyrRadS.y()),
+                     static_cast<float>(s.gyrRadS.z())},
+                    s.gyrClipped);
+        f.updateAcc({static_cast<float>(s.accMps2.x()), static_cast<float>(s.accMps2.y()),
+                     static_cast<float>(s.accMps2.z())});
+        f.updateMag({static_cast<float>(s.magUt.x()), static_cast<float>(s.magUt.y()),
+                     static_cast<float>(s.magUt.z())});
+        const auto q = f.quat();
+        out.push_back(Quatd(q.w, q.x, q.y, q.z).normalized());
+    }
+    return out;
+}
+
+TEST(Smoother, AfterAClipTheTakeIsTheBackwardRunsWhichHasNotPassedIt) {
+    const ClippedTake take = clippedTake({25.0});
+    ASSERT_TRUE(std::any_of(take.samples.begin(), take.samples.end(),
+                            [](const SmootherSample& s) { return s.gyrClipped; }));
+    const FilterParams p = paramsAt100Hz();
+    const auto causal = causalRun(take.samples, p);
+    const auto smoothed = smoothOrientations(take.samples, p);
+    const auto& truth = take.run.truth;
+    // The causal run carries the lost turn for tens of seconds (its heading gain).
+    const double causalAfter = meanErrorDeg(causal, truth, 26.0, 60.0);
+    EXPECT_GT(causalAfter, 10.0);
+    // The smoothed estimate does not, before the clip or after it.
+    EXPECT_LT(meanErrorDeg(smoothed, truth, 26.0, 60.0), 1.5) << "causal " << causalAfter;
+    EXPECT_LT(meanErrorDeg(smoothed, truth, 5.0, 24.5), 1.5);
+    // Nor where the causal run is right: the backward run's own passage of the clip is not
+    // carried back into the stretch before it.
+    EXPECT_LT(meanErrorDeg(smoothed, truth, 5.0, 24.5),
+              meanErrorDeg(causal, truth, 5.0, 24.5) + 0.5);
+}
+
+TEST(Smoother, AClipNearTheEndDoesNotTurnTheBackwardRunsStart) {
+    // The backward run starts from the causal run's state at the end; 5 s after a clip that
+    // state is still off by the lost turn, so the backward run aligns afresh there.
+    const ClippedTake take = clippedTake({55.0});
+    const FilterParams p = paramsAt100Hz();
+    const auto smoothed = smoothOrientations(take.samples, p);
+    EXPECT_LT(meanErrorDeg(smoothed, take.run.truth, 56.0, 60.0), 3.0);
+    EXPECT_LT(meanErrorDeg(smoothed, take.run.truth, 5.0, 54.5), 3.0);
+}
+
+TEST(Smoother, WithoutAClipTheHeadingIsTheCausalRunsAndTheEstimateFollowsTheTruth) {
+    const ClippedTake take = clippedTake({});
+    const FilterParams p = paramsAt100Hz();
+    const auto causal = causalRun(take.samples, p);
+    SmootherStats stats;
+    const auto smoothed = smoothOrientations(take.samples, p, {}, &stats);
+    // The heading is the causal run's: the two differ only in inclination.
+    double maxHeadingDeg = 0;
+    for (std::size_t k = 0; k < smoothed.size(); ++k) {
+        maxHeadingDeg = std::max(maxHeadingDeg, std::abs(test::headingDeg(smoothed[k], causal[k])));
+    }
+    EXPECT_LT(maxHeadingDeg, 0.05);
+    EXPECT_LT(meanErrorDeg(smoothed, take.run.truth, 2.0, 60.0), 1.0);
+    EXPECT_LT(stats.maxDisagreementDeg, 5.0);
+}
+
+}  // namespace
+}  // namespace caphub::fusion
