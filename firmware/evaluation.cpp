@@ -330,6 +330,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         // skeleton.
         ReprocessOptions ro;
         ro.smooth = true;
+        ro.smoothing = o.smoothing;
         ro.poseRateHz = o.poseRateHz;
         ro.sensorCalibrations = o.sensorCalibrations;
         ro.dimensions = bodyOptions.dimensions;

@@ -17,6 +17,7 @@
 #include "firmware/runtime/fusion_stage.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/pose_score.h"
+#include "fusion/smoother.h"
 #include "hal/core/error.h"
 
 namespace caphub::firmware {
@@ -54,6 +55,7 @@ struct EvaluateOptions {
     // --smooth`, firmware/reprocess.h: the same calibration, pose rate and skeleton) and score
     // its poses against the same truth.
     bool reprocessSmooth = false;
+    fusion::SmootherOptions smoothing;  // the reprocess's
     // The online hard-iron estimators' state file (docs/fusion.md, "No magnetometer
     // calibration"): one line per sensor, "name" and 19 numbers; read before the run when it
     // exists, written after it. Empty: none.

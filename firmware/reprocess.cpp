@@ -204,7 +204,7 @@ SmoothedOrientations smoothAll(const board::Board& board, const SourceRecording&
     for (std::size_t u = 0; u < n; ++u) {
         const fusion::FilterParams params = paramsOf(board.sensors[u]);
         for (const Run& r : runs[u]) {
-            const auto q = fusion::smoothOrientations(r.samples, params);
+            const auto q = fusion::smoothOrientations(r.samples, params, o.smoothing);
             for (std::size_t k = 0; k < q.size(); ++k) {
                 out.perSensor[u].push_back({r.tNs[k], q[k].cast<float>()});
             }

@@ -23,6 +23,7 @@
 #include "firmware/runtime/record_sink.h"
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/skeleton.h"
+#include "fusion/smoother.h"
 #include "hal/core/error.h"
 #include "hal/imu_sample.h"
 
@@ -107,6 +108,7 @@ struct ReprocessOptions {
     // The non-causal pass: orientations from a forward and a backward run of each sensor's
     // filter over the whole take, combined; the root's drift corrected between still instants.
     bool smooth = false;
+    fusion::SmootherOptions smoothing;
     // The body's skeleton (default: the board's [subject]); the evaluation gives the clip's.
     std::optional<body::Dimensions> dimensions;
     // Receives the poses solved (the evaluation scores them from a queue); may be null.

@@ -146,6 +146,14 @@ double share(double d, double mine, double theirs) {
 
 }  // namespace
 
+bool setSmoothHeading(SmootherOptions& o, std::string_view name) {
+    if (name != "causal" && name != "both") {
+        return false;
+    }
+    o.forwardHeading = name == "causal";
+    return true;
+}
+
 std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
                                       const FilterParams& params, const SmootherOptions& options,
                                       SmootherStats* stats) {
@@ -232,31 +240,29 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
         // The inclinations are averaged with the headings made alike first: between two
         // orientations whose headings differ (a run that lost a turn in a clip), the halfway
         // rotation would tilt the axis of the tilt as well.
-        if (options.forwardHeading) {
-            fw = (aboutUp(headingTurn(bw, fw)) * fw).normalized();
-        }
+        fw = (aboutUp(headingTurn(bw, fw)) * fw).normalized();
         if (fw.dot(bw) < 0) {
             bw.coeffs() = -bw.coeffs();
         }
         // Each run's variance: its steady state, and the part of the two runs' disagreement
         // that falls on it (all of it on the one that passed a clip more recently).
         const double steady = options.steadyVarRad2;
+        const double w = options.backwardWeight;
         const double tilt2 = excessOf(fw, bw).incl;
-        const double vf = steady * options.backwardWeight + share(tilt2, eg.incl, bwExcess[k].incl);
-        const double vb =
-            steady * (1.0 - options.backwardWeight) + share(tilt2, bwExcess[k].incl, eg.incl);
+        const double vf = steady * w + share(tilt2, eg.incl, bwExcess[k].incl);
+        const double vb = steady * (1.0 - w) + share(tilt2, bwExcess[k].incl, eg.incl);
         out[k] = fw.slerp(vf / (vf + vb), bw).normalized();
-        if (options.forwardHeading) {
-            // The heading (the turn about up) of the causal run, the inclination of both; the
-            // backward run's heading where the causal one is the worse for a clip.
-            const double toCausal = headingTurn(causal[k], out[k]);
-            const double toBackward = headingTurn(bw, out[k]);
-            const double apart = wrapPi(toBackward - toCausal);
-            const double hf = share(apart * apart, fwExcess[k].head, bwExcess[k].head);
-            const double hb = share(apart * apart, bwExcess[k].head, fwExcess[k].head);
-            const double wHead = hf / (hf + hb + steady);
-            out[k] = (aboutUp(toCausal + wHead * apart) * out[k]).normalized();
-        }
+        // The heading: the causal run's (forwardHeading: its steady-state share is all of it)
+        // or the forward run's, turned toward the backward run's by the same rule.
+        const Quatd& headingRun = options.forwardHeading ? causal[k] : fwRun;
+        const double headingPrior = options.forwardHeading ? fwExcess[k].head : eg.head;
+        const double toRun = headingTurn(headingRun, out[k]);
+        const double apart = wrapPi(headingTurn(bw, out[k]) - toRun);
+        const double hr = (options.forwardHeading ? 0.0 : steady * w) +
+                          share(apart * apart, headingPrior, bwExcess[k].head);
+        const double hb = steady * (options.forwardHeading ? 1.0 : 1.0 - w) +
+                          share(apart * apart, bwExcess[k].head, headingPrior);
+        out[k] = (aboutUp(toRun + hr / (hr + hb) * apart) * out[k]).normalized();
         const double deg = fwRun.angularDistance(backward[k]) * 180.0 / std::numbers::pi;
         sumDeg += deg;
         maxDeg = std::max(maxDeg, deg);

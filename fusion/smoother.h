@@ -12,6 +12,7 @@
 // stretch is taken from the run that has not passed it yet (docs/reprocess.md).
 #pragma once
 
+#include <string_view>
 #include <vector>
 
 #include "fusion/orientation_filter.h"
@@ -41,9 +42,10 @@ struct SmootherOptions {
     // converged: no start-up transient).
     double backwardWeight = 0.5;
     // Combine the inclinations only; the heading (the turn about up) is the causal run's (the
-    // first forward run, from power-on, as live). On BROAD the backward run's heading was worse
-    // than the forward one's, and a forward run started from the backward run's state inherits
-    // its heading at the start (docs/reprocess.md).
+    // first forward run, from power-on, as live). Combining the headings too removes the heading
+    // gain's lag (the two runs lag in opposite directions) and follows the field without it:
+    // better where the field is the same everywhere, worse on BROAD, whose field during the
+    // motion is a few degrees off its rest direction (docs/reprocess.md).
     bool forwardHeading = true;
     // Each run's steady-state error variance (rad^2): where the runs disagree after a clip, the
     // disagreement beyond this is laid on the run that passed the clip.
@@ -52,6 +54,14 @@ struct SmootherOptions {
 
 // One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the
 // samples' rate). Empty in, empty out.
+// The heading choice by its name on the command line ("causal": forwardHeading, "both": the
+// two runs' headings combined like the inclinations); false for any other name.
+bool setSmoothHeading(SmootherOptions& o, std::string_view name);
+inline constexpr const char* kSmoothHeadingHelp =
+    "With --smooth, the heading: causal (the live filter's, default) or both (the forward and "
+    "the backward runs' combined, without the heading gain's lag; wrong where the field differs "
+    "from place to place: docs/reprocess.md)";
+
 std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
                                       const FilterParams& params,
                                       const SmootherOptions& options = {},

@@ -37,6 +37,7 @@ struct EvaluateCliOptions {
     bool noBodyAiding = false;
     bool noFootInertial = false;
     bool reprocessSmooth = false;
+    std::string smoothHeading = "causal";
     bool brief = false;
     std::vector<std::uint64_t> seeds;
 };
@@ -184,6 +185,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.aidFilters = !c.noBodyAiding;
     o.footInertial = !c.noFootInertial;
     o.reprocessSmooth = c.reprocessSmooth;
+    fusion::setSmoothHeading(o.smoothing, c.smoothHeading);
     o.magState = c.magState;
     const auto profile = suitProfile(c.suit, "caphub evaluate");
     if (!profile) {
@@ -328,6 +330,9 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
                   "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
                   "and score it: live against smoothed, a table at the end");
+    cmd->add_option("--smooth-heading", o->smoothHeading, fusion::kSmoothHeadingHelp)
+        ->check(CLI::IsMember({"causal", "both"}))
+        ->needs("--reprocess-smooth");
     cmd->add_flag("--brief", o->brief,
                   "One line per clip and seed instead of the per-joint tables; the summary table "
                   "over every clip at the end as always with several runs");

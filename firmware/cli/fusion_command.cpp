@@ -27,12 +27,14 @@ struct FusionReplayOptions {
     bool fixed = false;
     bool summary = false;
     bool smooth = false;
+    std::string smoothHeading = "causal";
 };
 
 // The non-causal estimate (fusion/smoother.h) over the samples fed at every `decimation`-th
 // row, held between, one per row like runFilter's.
 std::vector<Quatd> smoothedEstimate(const std::vector<fusion::ImuSample>& samples, int decimation,
-                                    const fusion::FilterParams& params) {
+                                    const fusion::FilterParams& params,
+                                    const fusion::SmootherOptions& options) {
     std::vector<fusion::SmootherSample> fed;
     for (std::size_t i = 0; i < samples.size(); i += static_cast<std::size_t>(decimation)) {
         fusion::SmootherSample s;
@@ -43,7 +45,7 @@ std::vector<Quatd> smoothedEstimate(const std::vector<fusion::ImuSample>& sample
         s.magFresh = true;
         fed.push_back(s);
     }
-    const auto q = fusion::smoothOrientations(fed, params);
+    const auto q = fusion::smoothOrientations(fed, params, options);
     std::vector<Quatd> out(samples.size());
     for (std::size_t i = 0; i < samples.size(); ++i) {
         out[i] = q[i / static_cast<std::size_t>(decimation)];
@@ -148,7 +150,9 @@ int runReplay(const FusionReplayOptions& o) {
         }
         std::vector<Quatd> smoothed;
         if (o.smooth) {
-            smoothed = smoothedEstimate(trial->samples, decimation, params);
+            fusion::SmootherOptions so;
+            fusion::setSmoothHeading(so, o.smoothHeading);
+            smoothed = smoothedEstimate(trial->samples, decimation, params, so);
         }
         if (!o.output.empty()) {
             if (auto r = writeEstimate(o.output, *trial, o.smooth ? smoothed : estimate); !r) {
@@ -378,6 +382,9 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
     replay->add_flag("--smooth", opts->smooth,
                      "Also the non-causal estimate (forward and backward runs combined, "
                      "fusion/smoother.h): scored beside the causal filter; --out writes it");
+    replay->add_option("--smooth-heading", opts->smoothHeading, fusion::kSmoothHeadingHelp)
+        ->check(CLI::IsMember({"causal", "both"}))
+        ->needs("--smooth");
     replay->callback([opts, &exitCode] { exitCode = runReplay(*opts); });
 
     auto cv = std::make_shared<CvOptions>();

@@ -42,6 +42,7 @@ struct ReprocessArgs {
     std::string calibration;
     double poseRateHz = 60;
     bool smooth = false;
+    std::string smoothHeading = "causal";
 };
 
 // The new recording's header: the source's metadata, the sensor calibration replaced when
@@ -67,6 +68,7 @@ Result<std::string> reprocessedMetadata(const std::string& source, const Reproce
     toml::table r{{"source", fs::path(a.recording).filename().string()},
                   {"software", versionLine()},
                   {"smooth", a.smooth},
+                  {"smooth_heading", a.smooth ? a.smoothHeading : std::string("")},
                   {"pose_rate_hz", a.poseRateHz},
                   {"body_calibration", calibrationDone}};
     meta.insert_or_assign("reprocess", std::move(r));
@@ -108,6 +110,7 @@ int runReprocess(const ReprocessArgs& a) {
     ReprocessOptions o;
     o.poseRateHz = a.poseRateHz;
     o.smooth = a.smooth;
+    fusion::setSmoothHeading(o.smoothing, a.smoothHeading);
     o.calibration.atS = a.at;
     if (a.calibrate.empty()) {
         if (!a.at.empty()) {
@@ -283,6 +286,9 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--smooth", a->smooth,
                   "Non-causal pass over the whole take: forward-backward orientations, the "
                   "root's drift removed between still instants");
+    cmd->add_option("--smooth-heading", a->smoothHeading, fusion::kSmoothHeadingHelp)
+        ->check(CLI::IsMember({"causal", "both"}))
+        ->needs("--smooth");
     cmd->callback([&exitCode, a] { exitCode = runReprocess(*a); });
 }
 

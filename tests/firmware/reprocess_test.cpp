@@ -218,6 +218,21 @@ TEST_F(Reprocess, TheSmoothedRecordingHasEveryRecordAndInfoReadsIt) {
     EXPECT_EQ(got.orientations, in.samples);
     EXPECT_EQ(got.calibrated, 1u);
     EXPECT_EQ(caphub("info " + out).exitCode, 0);
+    EXPECT_THAT(got.metadata, HasSubstr("smooth_heading = 'causal'"));
+    // The heading of both runs: another estimate, and the header says which.
+    const std::string both = temp("smooth-both.cap");
+    fs::remove(both);
+    const CliRun rb =
+        caphub("reprocess " + source_ + " -o " + both + " --smooth --smooth-heading both");
+    ASSERT_EQ(rb.exitCode, 0) << rb.output;
+    const Contents gotBoth = contentsOf(both);
+    EXPECT_THAT(gotBoth.metadata, HasSubstr("smooth_heading = 'both'"));
+    ASSERT_EQ(gotBoth.poseJoints.size(), got.poseJoints.size());
+    float apart = 0;
+    for (std::size_t i = 0; i < got.poseJoints.size(); ++i) {
+        apart = std::max(apart, gotBoth.poseJoints[i].angularDistance(got.poseJoints[i]));
+    }
+    EXPECT_GT(apart, 1e-4f);
 }
 
 TEST_F(Reprocess, BadOptionsAndInputsAreRefusedWithExitCode2) {
@@ -237,6 +252,9 @@ TEST_F(Reprocess, BadOptionsAndInputsAreRefusedWithExitCode2) {
             "--at 100: the pose must be held from there for 1 s within the recording's");
     refused(source_ + " -o " + out + " --calibrate sitting --at 1", "--calibrate");
     refused(source_ + " -o " + out + " --pose-rate 0", "--pose-rate");
+    refused(source_ + " -o " + out + " --smooth-heading both",
+            "--smooth-heading requires --smooth");
+    refused(source_ + " -o " + out + " --smooth --smooth-heading sideways", "--smooth-heading");
     refused(temp("") + " -o " + out, "is a directory");
     refused(temp("missing.cap") + " -o " + out, "No such file");
     refused(source_ + " -o /dev/null", "is a device");
