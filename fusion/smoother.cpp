@@ -56,7 +56,8 @@ struct Excess {
     double head = 0;
 };
 
-// While a run is inside a clipped episode nothing is known of what it lost.
+// The prior of a run that has just passed a clipped episode (only the ratio of two runs' priors
+// is used), and the disagreement of two runs turned upside down from each other.
 constexpr Excess kUnknownExcess{1.0, 1.0};
 
 class ExcessDecay {
@@ -107,16 +108,51 @@ double wrapPi(double a) {
     return std::remainder(a, 2.0 * std::numbers::pi);
 }
 
-// Whether a clip's unknown excess, decayed by the causal run's corrections, is still above the
-// steady state at the end of the take.
+bool lastOfEpisode(const std::vector<SmootherSample>& s, std::size_t k) {
+    return s[k].gyrClipped && (k + 1 == s.size() || !s[k + 1].gyrClipped);
+}
+
+// What each clipped episode lost, on each of its samples (zero elsewhere): the causal run's
+// disagreement, at the episode's last sample, with a run from the other side that has not
+// passed the episode yet (backward from the causal run's state at the end). The same rotation
+// is lost going either way. A full scale barely reached loses next to nothing; a hand spun at
+// twice the full scale, tens of degrees.
+std::vector<Excess> episodeLosses(const std::vector<SmootherSample>& samples,
+                                  const std::vector<Quatd>& causal,
+                                  const FilterState<FloatTypes>& end, const FilterParams& params) {
+    const std::size_t n = samples.size();
+    std::vector<Excess> loss(n);
+    if (std::none_of(samples.begin(), samples.end(),
+                     [](const SmootherSample& s) { return s.gyrClipped; })) {
+        return loss;
+    }
+    Filter b(params);
+    b.setState(turnedAround(end));
+    Excess current;
+    for (std::size_t k = n; k-- > 0;) {
+        if (lastOfEpisode(samples, k)) {
+            // Before sample k is fed the backward run holds the attitude at sample k.
+            const Excess e = excessOf(causal[k], quatOf(b));
+            current = {std::min(e.incl, 1.0), std::min(e.head, 1.0)};
+        }
+        if (samples[k].gyrClipped) {
+            loss[k] = current;
+        }
+        feed(b, samples[k], true);
+    }
+    return loss;
+}
+
+// Whether a clip's excess, decayed by the causal run's corrections, is still above the steady
+// state at the end of the take.
 bool clipCarriedToTheEnd(const std::vector<SmootherSample>& samples,
-                         const std::vector<char>& magUsed, const ExcessDecay& decay,
-                         double steadyVarRad2) {
+                         const std::vector<Excess>& loss, const std::vector<char>& magUsed,
+                         const ExcessDecay& decay, double steadyVarRad2) {
     Excess e;
     for (std::size_t k = 0; k < samples.size(); ++k) {
         decay.apply(e, magUsed[k] != 0);
         if (samples[k].gyrClipped) {
-            e = kUnknownExcess;
+            e = loss[k];
         }
     }
     return std::max(e.incl, e.head) > steadyVarRad2;
@@ -133,12 +169,40 @@ FilterState<FloatTypes> realigned(FilterState<FloatTypes> s, const Vec3<float>& 
     return s;
 }
 
+// A backward run's state at the end of the take that owes nothing to the causal run's attitude
+// (only its rest detector and field reference; `bias` is the backward run's): aligned on the last
+// sample, run backward over the stretch after the last clip and forward again, its heading
+// aligned anew at the stretch's start, so that one sample of a moving limb (its acceleration
+// taken for gravity, the field's heading turned by that tilt) does not set its attitude.
+FilterState<FloatTypes> realignedAtTheEnd(const std::vector<SmootherSample>& samples,
+                                          const FilterState<FloatTypes>& causalEnd,
+                                          const Vec3<float>& bias, const FilterParams& params) {
+    const std::size_t n = samples.size();
+    Filter w(params);
+    w.setState(realigned(turnedAround(causalEnd), bias));
+    std::size_t firstClean = n;
+    while (firstClean > 0 && !samples[firstClean - 1].gyrClipped) {
+        --firstClean;
+    }
+    for (std::size_t k = n; k-- > firstClean;) {
+        feed(w, samples[k], true);
+    }
+    FilterState<FloatTypes> there = turnedAround(w.state());
+    there.headingInit = false;
+    w.setState(there);
+    for (std::size_t k = firstClean; k < n; ++k) {
+        feed(w, samples[k], false);
+    }
+    return turnedAround(w.state());
+}
+
 // What an attitude aligned on one sample errs by: its tilt from one accelerometer sample in
 // motion (a few degrees), its heading from one field sample (about one).
 constexpr Excess kRealignedExcess{0.003, 0.0003};
 
 // The part of a disagreement `d` between two runs that falls on the one whose clip excess
-// (decayed since the clip) is `mine` against the other's `theirs`: none where neither clipped.
+// (decayed since the clip) is `mine`, against the other's `theirs` and the steady state's
+// variance: none where neither clipped or what was lost is small.
 double share(double d, double mine, double theirs) {
     const double both = mine + theirs;
     return both > 1e-30 ? d * mine / both : 0.0;
@@ -178,29 +242,32 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
         causal[k] = quatOf(f);
         causalMag[k] = f.state().magUsed ? 1 : 0;
     }
+    const std::vector<Excess> loss = episodeLosses(samples, causal, f.state(), params);
     // 2. Backward from there. Before sample i is fed (reversed), the filter has integrated the
     // rates of samples n-1 .. i+1: it holds the attitude at sample i.
     Filter b(params);
     Excess eb;
-    if (clipCarriedToTheEnd(samples, causalMag, decay, options.steadyVarRad2)) {
+    if (clipCarriedToTheEnd(samples, loss, causalMag, decay, options.steadyVarRad2)) {
         // The causal run's attitude at the end still carries a clip's lost rotation: the
-        // backward run aligns afresh there instead, with the bias from before the first clip
-        // (the rest detector and the field reference are kept).
-        const Vec3<float> bias = negated(preClipBias.value_or(f.state().bias));
-        b.setState(realigned(turnedAround(f.state()), bias));
+        // backward run aligns afresh there instead, with the bias from before the first clip.
+        b.setState(realignedAtTheEnd(samples, f.state(),
+                                     negated(preClipBias.value_or(f.state().bias)), params));
         eb = kRealignedExcess;
     } else {
         b.setState(turnedAround(f.state()));
     }
     std::vector<Quatd> backward(n);
     std::vector<Excess> bwExcess(n);
+    Excess bwLost;  // what the clips the backward run passed lost, decayed as eb
     for (std::size_t k = n; k-- > 0;) {
         backward[k] = quatOf(b);
         bwExcess[k] = eb;
         feed(b, samples[k], true);
         decay.apply(eb, b.state().magUsed);
+        decay.apply(bwLost, b.state().magUsed);
         if (samples[k].gyrClipped) {
             eb = kUnknownExcess;
+            bwLost = loss[k];
         }
     }
     std::vector<Excess> fwExcess(n);
@@ -218,7 +285,7 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
     // the causal one instead (from power-on, as live: it had not passed the clip).
     Filter g(params);
     Excess eg = bwExcess.front();
-    const bool forwardIsCausal = std::max(eg.incl, eg.head) > options.steadyVarRad2;
+    const bool forwardIsCausal = std::max(bwLost.incl, bwLost.head) > options.steadyVarRad2;
     if (!forwardIsCausal) {
         g.setState(turnedAround(b.state()));
     }

@@ -24,15 +24,21 @@ struct ClippedTake {
     std::vector<SmootherSample> samples;
 };
 
-ClippedTake clippedTake(const std::vector<double>& spinsS) {
+ClippedTake clippedTake(const std::vector<double>& spinsS, double spinRadS = 45.0,
+                        double shakingFromS = 1e9) {
     test::SynthConfig c;
     c.rateHz = kRateHz;
+    // From shakingFromS on, the sensor is also shaken (3 m/s^2 horizontally).
+    c.linearAccEarth = [shakingFromS](double t) -> Vec3d {
+        return t < shakingFromS ? Vec3d::Zero()
+                                : Vec3d(3.0 * std::sin(5.0 * t), 3.0 * std::cos(4.0 * t), 0.0);
+    };
     const auto base = test::wobble(1.5);
     const auto omega = [&](double t) -> Vec3d {
         Vec3d w = base(t);
         for (double s : spinsS) {
             if (t >= s && t < s + 0.3) {
-                w.z() += 45.0;
+                w.z() += spinRadS;
             }
         }
         return w;
@@ -136,6 +142,23 @@ TEST(Smoother, WithoutAClipTheHeadingIsTheCausalRunsAndTheEstimateFollowsTheTrut
 // A steady turn about up read by a gyroscope whose scale is 0.5 % high: the heading gain's lag
 // (about 30 s) leaves the causal run behind the field by scale error x rate x lag, and a run
 // backward in time ahead of it by as much. Combining both runs' headings removes the lag.
+TEST(Smoother, ARunRealignedWhileTheLimbIsShakenSettlesItsTiltBeforeItsHeading) {
+    // A spin just beyond the full scale at 55 s (about 2 deg lost: the causal run's end still
+    // carries it, so the backward run aligns afresh at the end), and the sensor shaken at
+    // 3 m/s^2 from 50 s on: one sample's acceleration is not gravity there, and a tilt off by
+    // it turns the field's horizontal part, the heading with it.
+    const ClippedTake take = clippedTake({55.0}, 35.0, 50.0);
+    ASSERT_TRUE(std::any_of(take.samples.begin(), take.samples.end(),
+                            [](const SmootherSample& s) { return s.gyrClipped; }));
+    const FilterParams p = paramsAt100Hz();
+    const auto causal = causalRun(take.samples, p);
+    const auto smoothed = smoothOrientations(take.samples, p);
+    const auto& truth = take.run.truth;
+    EXPECT_LT(meanErrorDeg(smoothed, truth, 56.0, 60.0), meanErrorDeg(causal, truth, 56.0, 60.0));
+    EXPECT_LT(meanErrorDeg(smoothed, truth, 5.0, 54.5),
+              meanErrorDeg(causal, truth, 5.0, 54.5) + 0.3);
+}
+
 TEST(Smoother, BothRunsHeadingsTogetherHaveNoLag) {
     test::SynthConfig c;
     c.rateHz = kRateHz;
