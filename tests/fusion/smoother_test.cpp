@@ -93,13 +93,26 @@ std::vector<Quatd> causalRun(const std::vector<SmootherSample>& samples, const F
     return out;
 }
 
+bool anyClipped(const ClippedTake& take) {
+    return std::any_of(take.samples.begin(), take.samples.end(),
+                       [](const SmootherSample& s) { return s.gyrClipped; });
+}
+
+// The take through the causal filter and through the smoother, both at 100 Hz.
+struct Estimates {
+    std::vector<Quatd> causal;
+    std::vector<Quatd> smoothed;
+};
+
+Estimates estimatesOf(const ClippedTake& take) {
+    const FilterParams p = paramsAt100Hz();
+    return {causalRun(take.samples, p), smoothOrientations(take.samples, p)};
+}
+
 TEST(Smoother, AfterAClipTheTakeIsTheBackwardRunsWhichHasNotPassedIt) {
     const ClippedTake take = clippedTake({25.0});
-    ASSERT_TRUE(std::any_of(take.samples.begin(), take.samples.end(),
-                            [](const SmootherSample& s) { return s.gyrClipped; }));
-    const FilterParams p = paramsAt100Hz();
-    const auto causal = causalRun(take.samples, p);
-    const auto smoothed = smoothOrientations(take.samples, p);
+    ASSERT_TRUE(anyClipped(take));
+    const auto [causal, smoothed] = estimatesOf(take);
     const auto& truth = take.run.truth;
     // The causal run carries the lost turn for tens of seconds (its heading gain).
     const double causalAfter = meanErrorDeg(causal, truth, 26.0, 60.0);
@@ -148,11 +161,8 @@ TEST(Smoother, ARunRealignedWhileTheLimbIsShakenSettlesItsTiltBeforeItsHeading) 
     // 3 m/s^2 from 50 s on: one sample's acceleration is not gravity there, and a tilt off by
     // it turns the field's horizontal part, the heading with it.
     const ClippedTake take = clippedTake({55.0}, 35.0, 50.0);
-    ASSERT_TRUE(std::any_of(take.samples.begin(), take.samples.end(),
-                            [](const SmootherSample& s) { return s.gyrClipped; }));
-    const FilterParams p = paramsAt100Hz();
-    const auto causal = causalRun(take.samples, p);
-    const auto smoothed = smoothOrientations(take.samples, p);
+    ASSERT_TRUE(anyClipped(take));
+    const auto [causal, smoothed] = estimatesOf(take);
     const auto& truth = take.run.truth;
     EXPECT_LT(meanErrorDeg(smoothed, truth, 56.0, 60.0), meanErrorDeg(causal, truth, 56.0, 60.0));
     EXPECT_LT(meanErrorDeg(smoothed, truth, 5.0, 54.5),
