@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "board/sim/joint_map.h"
 #include "board/sim/virtual_suit.h"
 #include "firmware/reprocess.h"
 #include "firmware/runtime/body_stage.h"
@@ -208,6 +209,40 @@ MountingErrors mountingErrors(
     return m;
 }
 
+namespace {
+
+// The clip's joints that turn faster than a body can (bs::implausibleTurns), among those that
+// make up a segment (not the fingers or the toes, which no sensor measures).
+std::vector<bs::ImplausibleTurns> measuredTruthTurns(const EvaluateOptions& o) {
+    auto raw = bs::loadBvh(o.bvh);
+    if (!raw) {
+        return {};
+    }
+    std::optional<bs::JointMap> loaded;
+    const bs::JointMap* map = nullptr;
+    if (o.map.empty()) {
+        map = bs::detectJointMap(*raw);
+    } else if (auto m = bs::loadJointMap(o.map)) {
+        loaded = std::move(*m);
+        map = &*loaded;
+    }
+    std::vector<bs::ImplausibleTurns> out;
+    for (bs::ImplausibleTurns& t : bs::implausibleTurns(*raw)) {
+        const bool measured =
+            map == nullptr ||
+            std::any_of(map->joints.begin(), map->joints.end(),
+                        [&](const std::vector<std::string>& names) {
+                            return std::find(names.begin(), names.end(), t.joint) != names.end();
+                        });
+        if (measured) {
+            out.push_back(std::move(t));
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
 Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
     if (!board::allBusesSimulated(b)) {
         return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
@@ -256,6 +291,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     hubOptions.body = bodyOptions;
     EvaluateResult r;
     r.clip = o.bvh.filename().string();
+    r.truthTurns = measuredTruthTurns(o);
     r.leadInS = static_cast<double>(clip->leadInNs) * 1e-9;
     r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
     PoseScoringStage scoring(*clip->trajectory, start, clip->leadInNs);
@@ -494,6 +530,19 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
                                "an unknown rotation there): {}\n",
                                clipped));
     }
+    if (!r.truthTurns.empty()) {
+        std::string turns;
+        for (const bs::ImplausibleTurns& t : r.truthTurns) {
+            turns +=
+                fmt::format("{}{} {} time{} (up to {:.0f} deg)", turns.empty() ? "" : ", ", t.joint,
+                            t.frames, t.frames == 1 ? "" : "s", t.maxTurnRad * 180.0 / hal::kPi);
+        }
+        out.insert(out.size() - 1,
+                   fmt::format("the clip's truth turns joints faster than a body can (beyond "
+                               "10,000 deg/s from one frame to the next: a motion-capture "
+                               "artefact; the errors there are the clip's): {}\n",
+                               turns));
+    }
     if (o.profile != bs::ErrorProfile::Ideal && o.sensorCalibrations.empty()) {
         out.insert(out.size() - 1,
                    "note: no --calibration: the chips' biases and the magnetometers' hard and "
@@ -594,7 +643,12 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
                 j == 0 ? "" : ",", body::independentJoints()[j].name, s.independentAngleDeg[j],
                 s.independentPositionM[j], body::independentJointMeasured(s.measured, j));
         }
-        out += "\n      ],\n      \"gyro_clipped\": {";
+        out += "\n      ],\n      \"truth_implausible_turns\": {";
+        for (std::size_t i = 0; i < r.truthTurns.size(); ++i) {
+            out += fmt::format("{}{}: {}", i == 0 ? "" : ", ", quoted(r.truthTurns[i].joint),
+                               r.truthTurns[i].frames);
+        }
+        out += "},\n      \"gyro_clipped\": {";
         for (std::size_t i = 0; i < r.gyroClipEvents.size() && i < b.sensors.size(); ++i) {
             out += fmt::format("{}{}: {}", i == 0 ? "" : ", ", quoted(b.sensors[i].name),
                                r.gyroClipEvents[i]);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "board/board.h"
+#include "board/sim/bvh.h"
 #include "board/sim/imu_model.h"
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/fusion_stage.h"
@@ -82,6 +83,9 @@ struct EvaluateResult {
     std::vector<bool> nominalHeading;
     // Per board sensor: how many times its gyroscope clipped (rates beyond its full scale).
     std::vector<std::uint32_t> gyroClipEvents;
+    // The clip's joints that turn faster than a body can (board/sim/bvh.h): where the truth
+    // itself is a motion-capture artefact, the errors there are not the solver's.
+    std::vector<board::sim::ImplausibleTurns> truthTurns;
     // Per board sensor at the end of the run: its heading source and its online hard-iron
     // estimate (docs/fusion.md, "No magnetometer calibration").
     std::vector<MagMode> magModes;

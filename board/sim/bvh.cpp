@@ -1,5 +1,6 @@
 #include "board/sim/bvh.h"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -527,6 +528,30 @@ int BvhClip::findJoint(std::string_view name) const {
         }
     }
     return -1;
+}
+
+std::vector<ImplausibleTurns> implausibleTurns(const BvhClip& clip, double maxRateRadS) {
+    std::vector<ImplausibleTurns> out;
+    const double maxStepRad = maxRateRadS * clip.frameTimeS;
+    Vec3d t;
+    Quatd before;
+    Quatd after;
+    for (int j = 0; j < static_cast<int>(clip.joints.size()); ++j) {
+        ImplausibleTurns found{clip.joints[static_cast<std::size_t>(j)].name};
+        for (int f = 0; f + 1 < clip.frameCount; ++f) {
+            clip.localPose(j, clip.frame(f), t, before);
+            clip.localPose(j, clip.frame(f + 1), t, after);
+            const double turn = before.angularDistance(after);
+            if (turn > maxStepRad) {
+                ++found.frames;
+                found.maxTurnRad = std::max(found.maxTurnRad, turn);
+            }
+        }
+        if (found.frames > 0) {
+            out.push_back(std::move(found));
+        }
+    }
+    return out;
 }
 
 void BvhClip::localPose(int joint, std::span<const double> frameValues, Vec3d& translation,

@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "hal/core/angles.h"
 #include "hal/core/error.h"
 #include "hal/core/quaternion.h"
 
@@ -55,6 +56,22 @@ struct BvhClip {
     void localPose(int joint, std::span<const double> frameValues, Vec3d& translation,
                    Quatd& rotation) const;
 };
+
+// A joint the clip turns faster than a body can: relative to its parent, by more than
+// `maxRateRadS` times the frame time between two consecutive frames. Motion capture does this
+// when its solver flips a limb about its long axis for a frame or a few (cmu_05_06's right leg:
+// 171-180 deg in 1/120 s); no segment of a body turns beyond about 10,000 deg/s (a pitcher's
+// upper arm, the fastest measured, reaches 7,000-9,000).
+struct ImplausibleTurns {
+    std::string joint;
+    int frames = 0;         // frame-to-frame steps beyond the rate
+    double maxTurnRad = 0;  // the largest of them
+};
+inline constexpr double kBodyMaxRateRadS = 10000.0 * hal::kDegToRad;
+
+// Per joint with such steps, in file order; empty for a clip a body could have made.
+std::vector<ImplausibleTurns> implausibleTurns(const BvhClip& clip,
+                                               double maxRateRadS = kBodyMaxRateRadS);
 
 // Parses BVH text. Accepts the whole grammar: HIERARCHY, one or more ROOTs, JOINT, End Site,
 // OFFSET, CHANNELS with 0-6 channels in any order on any joint, MOTION, Frames, Frame Time; any

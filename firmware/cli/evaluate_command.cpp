@@ -262,11 +262,19 @@ int evaluate(const EvaluateCliOptions& c) {
             }
             if (c.brief) {
                 const body::PoseScore& s = r->score;
+                std::string turns;
+                for (const board::sim::ImplausibleTurns& t : r->truthTurns) {
+                    turns += fmt::format("{} {} {}",
+                                         turns.empty() ? "; the truth turns faster "
+                                                         "than a body can:"
+                                                       : ",",
+                                         t.joint, t.frames);
+                }
                 fmt::print(
                     "{} seed {}: 17 joints {:.3f} deg / {:.3f} cm, path {:.3f} m, drift "
-                    "{:.3f} m, height error {:.3f} m mean / {:.3f} m max\n",
+                    "{:.3f} m, height error {:.3f} m mean / {:.3f} m max{}\n",
                     r->clip, seed, s.independentMeanAngleDeg, s.independentMeanPositionM * 100,
-                    s.walkedM, s.finalDriftM, s.meanHeightErrorM, s.maxHeightErrorM);
+                    s.walkedM, s.finalDriftM, s.meanHeightErrorM, s.maxHeightErrorM, turns);
             } else {
                 fmt::print("{}\n", formatEvaluation(*r, b, o));
             }

@@ -14,6 +14,8 @@
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -218,6 +220,55 @@ fs::path walkCut(int frames) {
         cut << line << "\n";
     }
     return out;
+}
+
+// The walk with its right thigh (RightUpLeg, channels 24-26) flipped by 170 deg about its own
+// Z axis for frames 200-202 and back: what motion capture does when its solver loses a limb.
+fs::path walkWithAFlippedThigh() {
+    std::ifstream in(kWalk);
+    const fs::path out =
+        fs::temp_directory_path() / fmt::format("caphub_evaluate_{}_flip.bvh", ::getpid());
+    std::ofstream flipped(out, std::ios::trunc);
+    std::string line;
+    while (std::getline(in, line) && line.find("Frame Time") == std::string::npos) {
+        flipped << line << "\n";
+    }
+    flipped << line << "\n";
+    for (int f = 0; std::getline(in, line); ++f) {
+        if (f >= 200 && f < 203) {
+            std::istringstream values(line);
+            std::vector<double> v;
+            for (double x; values >> x;) {
+                v.push_back(x);
+            }
+            v.at(24) += 170.0;
+            line = fmt::format("{}", fmt::join(v, " "));
+        }
+        flipped << line << "\n";
+    }
+    return out;
+}
+
+TEST(EvaluateThroughTheFilter, ATruthThatTurnsALimbFasterThanABodySaysSo) {
+    const board::Board b = simSuit();
+    firmware::EvaluateOptions o = idealOptions(0);
+    o.bvh = walkWithAFlippedThigh();
+    auto r = firmware::evaluateClip(b, o);
+    fs::remove(o.bvh);
+    ASSERT_TRUE(r) << r.error().message;
+    ASSERT_EQ(r->truthTurns.size(), 1u);
+    EXPECT_EQ(r->truthTurns[0].joint, "RightUpLeg");
+    EXPECT_EQ(r->truthTurns[0].frames, 2);  // there and back
+    const std::string text = firmware::formatEvaluation(*r, b, o);
+    EXPECT_THAT(text, ::testing::HasSubstr("faster than a body can"));
+    // 170 deg about the thigh's Z, composed with the frame's own motion.
+    EXPECT_THAT(text, ::testing::ContainsRegex("RightUpLeg 2 times \\(up to 1[67][0-9] deg\\)"));
+    // The walk as it is: nothing said.
+    auto plain = firmware::evaluateClip(b, idealOptions(0));
+    ASSERT_TRUE(plain) << plain.error().message;
+    EXPECT_TRUE(plain->truthTurns.empty());
+    EXPECT_THAT(firmware::formatEvaluation(*plain, b, idealOptions(0)),
+                ::testing::Not(::testing::HasSubstr("faster than a body can")));
 }
 
 TEST(EvaluateThroughTheFilter, IdealSensorsComeCloseToTheIdealOrientationEvaluation) {

@@ -26,6 +26,12 @@ void drive(const BvhClip& clip, std::size_t variant) {
         clip.joints.size() > kMaxJoints) {
         return;
     }
+    // What evaluate reports of the clip's truth: any clip, any frame time.
+    for (const ImplausibleTurns& t : implausibleTurns(clip)) {
+        if (t.frames < 1 || t.frames >= clip.frameCount || !(t.maxTurnRad >= 0)) {
+            std::abort();
+        }
+    }
     // The first joints of the file onto the first segments: chains, names and the pelvis all
     // come from the input, so binding errors are exercised as well as successes.
     JointMap map;

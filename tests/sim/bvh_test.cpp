@@ -251,5 +251,48 @@ TEST(Bvh, DeepNestingDoesNotExhaustTheStack) {
     EXPECT_EQ(r->joints.size(), static_cast<std::size_t>(kDepth) + 1);
 }
 
+// A clip at 120 frames/s whose Chest turns 2 deg a frame (240 deg/s, a body's pace), except where
+// it flips by `flipDeg` about its long axis for three frames and back.
+std::string flippingClip(double flipDeg) {
+    std::string text =
+        "HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition "
+        "Zrotation Xrotation Yrotation\nJOINT Chest\n{\nOFFSET 0 10 0\nCHANNELS 3 Zrotation "
+        "Xrotation Yrotation\nEnd Site\n{\nOFFSET 0 5 0\n}\n}\n}\nMOTION\nFrames: 20\n"
+        "Frame Time: 0.0083333\n";
+    for (int f = 0; f < 20; ++f) {
+        const double twist = (f >= 10 && f < 13) ? flipDeg : 0.0;
+        text += "0 0 0 0 0 " + std::to_string(2.0 * f) + " 0 0 " + std::to_string(twist) + "\n";
+    }
+    return text;
+}
+
+TEST(Bvh, AJointFlippedFasterThanABodyCanTurnIsFound) {
+    const auto flipped = parseBvh(flippingClip(170.0), "flip");
+    ASSERT_TRUE(flipped.ok()) << flipped.error().message;
+    const auto turns = implausibleTurns(*flipped);
+    ASSERT_EQ(turns.size(), 1u);
+    EXPECT_EQ(turns[0].joint, "Chest");
+    EXPECT_EQ(turns[0].frames, 2);  // there and back
+    EXPECT_NEAR(turns[0].maxTurnRad, 170.0 * kRad, 1e-6);
+    // 60 deg in a frame is 7,200 deg/s: fast, but a body's (a pitcher's upper arm).
+    const auto fast = parseBvh(flippingClip(60.0), "fast");
+    ASSERT_TRUE(fast.ok()) << fast.error().message;
+    EXPECT_TRUE(implausibleTurns(*fast).empty());
+}
+
+TEST(Bvh, TheShippedClipsTurnNoLimbFasterThanABody) {
+    for (const char* name : {"cmu_12_01_walk.bvh", "cmu_16_36_run_daz.bvh"}) {
+        const auto clip = loadBvh(kData / name);
+        ASSERT_TRUE(clip.ok()) << clip.error().message;
+        EXPECT_TRUE(implausibleTurns(*clip).empty()) << name;
+    }
+    // cmu_131_01's right thumb flips (a joint no sensor measures).
+    const auto walkStop = loadBvh(kData / "cmu_131_01_start_walk_stop.bvh");
+    ASSERT_TRUE(walkStop.ok()) << walkStop.error().message;
+    const auto turns = implausibleTurns(*walkStop);
+    ASSERT_EQ(turns.size(), 1u);
+    EXPECT_EQ(turns[0].joint, "RThumb");
+}
+
 }  // namespace
 }  // namespace caphub::board::sim
