@@ -9,7 +9,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include "board/sim/joint_map.h"
 #include "board/sim/virtual_suit.h"
 #include "firmware/reprocess.h"
 #include "firmware/runtime/body_stage.h"
@@ -209,40 +208,6 @@ MountingErrors mountingErrors(
     return m;
 }
 
-namespace {
-
-// The clip's joints that turn faster than a body can (bs::implausibleTurns), among those that
-// make up a segment (not the fingers or the toes, which no sensor measures).
-std::vector<bs::ImplausibleTurns> measuredTruthTurns(const EvaluateOptions& o) {
-    auto raw = bs::loadBvh(o.bvh);
-    if (!raw) {
-        return {};
-    }
-    std::optional<bs::JointMap> loaded;
-    const bs::JointMap* map = nullptr;
-    if (o.map.empty()) {
-        map = bs::detectJointMap(*raw);
-    } else if (auto m = bs::loadJointMap(o.map)) {
-        loaded = std::move(*m);
-        map = &*loaded;
-    }
-    std::vector<bs::ImplausibleTurns> out;
-    for (bs::ImplausibleTurns& t : bs::implausibleTurns(*raw)) {
-        const bool measured =
-            map == nullptr ||
-            std::any_of(map->joints.begin(), map->joints.end(),
-                        [&](const std::vector<std::string>& names) {
-                            return std::find(names.begin(), names.end(), t.joint) != names.end();
-                        });
-        if (measured) {
-            out.push_back(std::move(t));
-        }
-    }
-    return out;
-}
-
-}  // namespace
-
 Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions& o) {
     if (!board::allBusesSimulated(b)) {
         return Error{EINVAL, fmt::format("board '{}' has real buses; the evaluation needs a "
@@ -291,7 +256,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     hubOptions.body = bodyOptions;
     EvaluateResult r;
     r.clip = o.bvh.filename().string();
-    r.truthTurns = measuredTruthTurns(o);
+    r.truthTurns = clip->truthTurns;
     r.leadInS = static_cast<double>(clip->leadInNs) * 1e-9;
     r.clipS = static_cast<double>(clip->motion->durationNs()) * 1e-9;
     PoseScoringStage scoring(*clip->trajectory, start, clip->leadInNs);

@@ -201,8 +201,7 @@ FilterState<FloatTypes> realignedAtTheEnd(const std::vector<SmootherSample>& sam
 constexpr Excess kRealignedExcess{0.003, 0.0003};
 
 // The part of a disagreement `d` between two runs that falls on the one whose clip excess
-// (decayed since the clip) is `mine`, against the other's `theirs` and the steady state's
-// variance: none where neither clipped or what was lost is small.
+// (decayed since the clip) is `mine`, against the other's `theirs`: none where neither clipped.
 double share(double d, double mine, double theirs) {
     const double both = mine + theirs;
     return both > 1e-30 ? d * mine / both : 0.0;

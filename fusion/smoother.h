@@ -52,16 +52,12 @@ struct SmootherOptions {
     double steadyVarRad2 = 3.0e-4;
 };
 
-// One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the
-// samples' rate). Empty in, empty out.
 // The heading choice by its name on the command line ("causal": forwardHeading, "both": the
 // two runs' headings combined like the inclinations); false for any other name.
 bool setSmoothHeading(SmootherOptions& o, std::string_view name);
-inline constexpr const char* kSmoothHeadingHelp =
-    "With --smooth, the heading: causal (the live filter's, default) or both (the forward and "
-    "the backward runs' combined, without the heading gain's lag; wrong where the field differs "
-    "from place to place: docs/reprocess.md)";
 
+// One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the
+// samples' rate). Empty in, empty out.
 std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples,
                                       const FilterParams& params,
                                       const SmootherOptions& options = {},

@@ -230,6 +230,15 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
         return motion.error();
     }
     ClipSuit suit;
+    for (ImplausibleTurns& t : implausibleTurns(*clip)) {
+        const bool ofASegment = std::any_of(
+            map.joints.begin(), map.joints.end(), [&](const std::vector<std::string>& names) {
+                return std::find(names.begin(), names.end(), t.joint) != names.end();
+            });
+        if (ofASegment) {
+            suit.truthTurns.push_back(std::move(t));
+        }
+    }
     suit.motion = std::make_shared<const Motion>(std::move(*motion));
     SegmentState pelvis;
     suit.motion->evaluate(board::Segment::Pelvis, 0, pelvis);

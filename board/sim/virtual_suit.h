@@ -8,8 +8,10 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "board/hardware.h"
+#include "board/sim/bvh.h"
 #include "board/sim/imu_model.h"
 #include "board/sim/motion.h"
 #include "board/sim/scripted_motion.h"
@@ -65,6 +67,9 @@ struct ClipSuit {
     std::int64_t leadInNs = 0;
     Environment environment;
     SourceFactory sources;
+    // The clip's joints that make up a segment and turn faster than a body can
+    // (implausibleTurns): where the truth itself is a motion-capture artefact.
+    std::vector<ImplausibleTurns> truthTurns;
     // Where a board sensor truly sits on its segment (the mounting the calibration must find).
     std::function<SensorPlacement(const SensorConfig& sensor, int index)> placement;
 };

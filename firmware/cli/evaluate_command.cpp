@@ -15,6 +15,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/smooth_heading_option.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/evaluation.h"
 #include "hal/core/input_file.h"
@@ -338,9 +339,7 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
                   "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
                   "and score it: live against smoothed, a table at the end");
-    cmd->add_option("--smooth-heading", o->smoothHeading, fusion::kSmoothHeadingHelp)
-        ->check(CLI::IsMember({"causal", "both"}))
-        ->needs("--reprocess-smooth");
+    addSmoothHeadingOption(*cmd, o->smoothHeading, "--reprocess-smooth");
     cmd->add_flag("--brief", o->brief,
                   "One line per clip and seed instead of the per-joint tables; the summary table "
                   "over every clip at the end as always with several runs");

@@ -11,6 +11,7 @@
 
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/smooth_heading_option.h"
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
 #include "fusion/smoother.h"
@@ -382,9 +383,7 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
     replay->add_flag("--smooth", opts->smooth,
                      "Also the non-causal estimate (forward and backward runs combined, "
                      "fusion/smoother.h): scored beside the causal filter; --out writes it");
-    replay->add_option("--smooth-heading", opts->smoothHeading, fusion::kSmoothHeadingHelp)
-        ->check(CLI::IsMember({"causal", "both"}))
-        ->needs("--smooth");
+    addSmoothHeadingOption(*replay, opts->smoothHeading, "--smooth");
     replay->callback([opts, &exitCode] { exitCode = runReplay(*opts); });
 
     auto cv = std::make_shared<CvOptions>();

@@ -21,6 +21,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/smooth_heading_option.h"
 #include "firmware/cli/terminal_progress.h"
 #include "firmware/export/output_file.h"
 #include "firmware/recording/reader.h"
@@ -286,9 +287,7 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--smooth", a->smooth,
                   "Non-causal pass over the whole take: forward-backward orientations, the "
                   "root's drift removed between still instants");
-    cmd->add_option("--smooth-heading", a->smoothHeading, fusion::kSmoothHeadingHelp)
-        ->check(CLI::IsMember({"causal", "both"}))
-        ->needs("--smooth");
+    addSmoothHeadingOption(*cmd, a->smoothHeading, "--smooth");
     cmd->callback([&exitCode, a] { exitCode = runReprocess(*a); });
 }
 
