@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "hal/core/angles.h"
+
 namespace caphub::body {
 
 namespace {
@@ -14,6 +16,73 @@ using S = Segment;
 // origin).
 Vec3d footSensorOnPose(const Pose& pose, const FootSensorMotion& feet, std::size_t f) {
     return pointOnSegment(pose, idx(f == 0 ? S::LHindfoot : S::RHindfoot), feet.onFootM[f]);
+}
+
+// Where the seat point is on a pose: on the pelvis, below the middle of the hip joints.
+Vec3d seatOnPose(const Pose& pose, const ContactOptions& options) {
+    const Vec3d hips = 0.5 * (pose.positionM[idx(S::LThigh)] + pose.positionM[idx(S::RThigh)]);
+    return hips + pose.qWorld[idx(S::Pelvis)] * options.seatBelowHipsM;
+}
+
+using Vec2d = Eigen::Vector2d;
+
+double cross(const Vec2d& o, const Vec2d& a, const Vec2d& b) {
+    return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
+}
+
+double distanceToSegment(const Vec2d& p, const Vec2d& a, const Vec2d& b) {
+    const Vec2d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return (p - (a + t * ab)).norm();
+}
+
+// How far p is from the convex hull of the n points (0 inside it).
+double distanceToHull(const Vec2d& p, std::array<Vec2d, 6> pts, std::size_t n) {
+    n = std::min(n, pts.size());
+    if (n == 0) {
+        return std::numeric_limits<double>::infinity();
+    }
+    const auto end = pts.begin() + static_cast<std::ptrdiff_t>(n);
+    std::sort(pts.begin(), end, [](const Vec2d& a, const Vec2d& b) {
+        return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+    });
+    // Andrew's monotone chain, counter-clockwise.
+    std::array<Vec2d, 12> hull{};
+    std::size_t h = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        while (h >= 2 && cross(hull[h - 2], hull[h - 1], pts[i]) <= 0) {
+            --h;
+        }
+        hull[h++] = pts[i];
+    }
+    for (std::size_t i = n - 1, lower = h + 1; i-- > 0;) {
+        while (h >= lower && cross(hull[h - 2], hull[h - 1], pts[i]) <= 0) {
+            --h;
+        }
+        hull[h++] = pts[i];
+    }
+    if (h > 1) {
+        --h;  // the last point is the first
+    }
+    if (h == 1) {
+        return (p - hull[0]).norm();
+    }
+    bool inside = h >= 3;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < h; ++i) {
+        const Vec2d& a = hull[i];
+        const Vec2d& b = hull[(i + 1) % h];
+        inside = inside && cross(a, b, p) >= 0;
+        nearest = std::min(nearest, distanceToSegment(p, a, b));
+    }
+    return inside ? 0.0 : nearest;
+}
+
+constexpr int kSeatPoint = 6;
+
+bool isSeat(int point) {
+    return point >= kSeatPoint;
 }
 
 }  // namespace
@@ -92,6 +161,8 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     const auto& pts = lowestIndex < 3 ? d.leftFootPointM : d.rightFootPointM;
     anchor_ = pointOnSegment(pose, seg, pts[static_cast<std::size_t>(lowestIndex % 3)]);
     anchor_.y() = floorYM;
+    seatRelM_ = seatOnPose(pose, options_) - root_;
+    offFeetS_ = 0;
     started_ = true;
 }
 
@@ -114,6 +185,9 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     // as the legs tuck and swing), which no support gives.
     freeFallCount_ = force && force->y() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
     const Vec3d comOffset = centreOfMassOffsetM(d, pose);
+    // The seat relative to the root, and its velocity.
+    const Vec3d seat = seatOnPose(pose, options_);
+    const Vec3d seatVelocity = dtS > 0 ? Vec3d((seat - seatRelM_) / dtS) : Vec3d::Zero();
     if (freeFallCount_ == 1) {
         // The take-off was during this frame, so the root's state at its start (the feet, now
         // unloaded, stop carrying the root, and they rarely leave the floor at a frame's start).
@@ -140,6 +214,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
 
     Vec3d next = root_;
     if (phase_ == ContactPhase::Flight) {
+        offFeetS_ = 0;
         // Exact for constant gravity: the centre of mass' path is a parabola (horizontally it
         // keeps its take-off velocity), and the root is where the body's shape puts it from
         // there: legs tucked in the air lift the centre of mass towards the root.
@@ -189,17 +264,46 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     } else {
         // The anchored point is the one predicted to move least in the world. Its velocity
         // relative to the root plus the (low-passed) root velocity predicts its world velocity;
-        // only points near the floor qualify. The anchor is continuous across a change of point
-        // (the new point is held where it is now), so a change never makes the root jump: drift
-        // comes only from holding a point that in truth moves, which this choice minimises.
-        const Vec3d here = anchor_ - r[static_cast<std::size_t>(point_)];
-        auto predictedSpeed = [&](int k) {
-            return (smoothVelocity_ + feet.velocityMps[static_cast<std::size_t>(k)]).norm();
+        // only points near the floor qualify, and the seat while the subject sits. The anchor
+        // is continuous across a change of point (the new point is held where it is now), so a
+        // change never makes the root jump: drift comes only from holding a point that in truth
+        // moves, which this choice minimises.
+        const Vec3d comRate = dtS > 0 ? Vec3d((comOffset - comOffset_) / dtS) : Vec3d::Zero();
+        const bool offFeet = seated(pose, r, minY, comOffset, comRate);
+        offFeetS_ = offFeet ? offFeetS_ + dtS : 0;
+        const bool seatQualifies = offFeet && offFeetS_ >= options_.seatedForS - 1e-9;
+        auto relative = [&](int k) -> Vec3d {
+            return isSeat(k) ? seat : r[static_cast<std::size_t>(k)];
         };
+        auto predictedSpeed = [&](int k) {
+            const Vec3d v =
+                isSeat(k) ? seatVelocity : feet.velocityMps[static_cast<std::size_t>(k)];
+            return (smoothVelocity_ + v).norm();
+        };
+        // While the seat carries the body no foot point does: the feet may hang or rest on a
+        // rung, and the floor would pull the root down to them. Once the body is back over the
+        // feet the seat no longer qualifies and the feet take over as before.
+        const bool onSeat = isSeat(point_) && seatQualifies;
+        auto qualifies = [&](int k) {
+            if (isSeat(k)) {
+                return seatQualifies;
+            }
+            return !onSeat && r[static_cast<std::size_t>(k)].y() - minY <= options_.heightM;
+        };
+        // Where the held point puts the root: on the seat, where the seat is; on a foot, the
+        // lowest foot point on the floor.
+        auto placeOn = [&](int k) {
+            Vec3d at = anchor_ - relative(k);
+            if (!isSeat(k)) {
+                at.y() = floorYM - minY;
+            }
+            return at;
+        };
+        const Vec3d here = placeOn(point_);
         int best = -1;
         double bestSpeed = std::numeric_limits<double>::max();
-        for (int k = 0; k < 6; ++k) {
-            if (r[static_cast<std::size_t>(k)].y() - minY > options_.heightM) {
+        for (int k = 0; k <= kSeatPoint; ++k) {
+            if (!qualifies(k)) {
                 continue;
             }
             const double v = predictedSpeed(k);
@@ -208,24 +312,31 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
                 best = k;
             }
         }
-        const bool currentQualifies =
-            r[static_cast<std::size_t>(point_)].y() - minY <= options_.heightM;
+        // The body off its feet in a sitting posture is on the seat: the seat takes it at once,
+        // whatever the feet do (one lifted to a rung moves less in the world than the seat
+        // predicted from a root that the floor is pulling down with it).
+        if (seatQualifies && !isSeat(point_)) {
+            best = kSeatPoint;
+            bestSpeed = -1;
+        }
         if (best != point_ &&
-            (!currentQualifies || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
-            if ((best < 3) != (point_ < 3)) {
+            (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
+            if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
                 ++stanceChanges_;
             }
             point_ = best;
-            phase_ = best < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
-            anchor_ = here + r[static_cast<std::size_t>(best)];
+            phase_ = isSeat(best) ? ContactPhase::Seated
+                     : best < 3   ? ContactPhase::LeftStance
+                                  : ContactPhase::RightStance;
+            anchor_ = here + relative(best);
         }
         // The anchored point slips when its foot, rolling off the floor, moves in the world:
         // the foot's dead reckoning says by how much (the foot is rigid: the point's velocity
         // is the sensor's plus the rate crossed with the lever from the sensor to the point).
         const int foot = point_ < 3 ? 0 : 1;
         const auto uf = static_cast<std::size_t>(foot);
-        if (footSensors != nullptr && footSensors->valid[uf] && !footSensors->still[uf] &&
-            dtS > 0) {
+        if (!isSeat(point_) && footSensors != nullptr && footSensors->valid[uf] &&
+            !footSensors->still[uf] && dtS > 0) {
             const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
             const Vec3d slip =
                 footSensors->velocityMps[uf] +
@@ -233,8 +344,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             anchor_.x() += slip.x() * dtS;  // along the floor
             anchor_.z() += slip.z() * dtS;
         }
-        next = anchor_ - r[static_cast<std::size_t>(point_)];
-        next.y() = floorYM - minY;  // the lowest foot point stands on the floor
+        next = placeOn(point_);
         velocity_ = dtS > 0 ? Vec3d((next - root_) / dtS) : Vec3d::Zero();
     }
     if (dtS > 0) {
@@ -254,6 +364,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         comOffsetRate_ = (comOffset - comOffset_) / dtS;
     }
     comOffset_ = comOffset;
+    seatRelM_ = seat;
     footSensorsKnown_ = footSensors != nullptr;
     if (footSensorsKnown_) {
         for (std::size_t f = 0; f < 2; ++f) {
@@ -274,6 +385,35 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     for (auto& p : pose.positionM) {
         p += shift;
     }
+}
+
+bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY,
+                         const Vec3d& com, const Vec3d& comVelocityAboutRoot) const {
+    const double cosMax = std::cos(options_.seatedThighDeg * hal::kDegToRad);
+    for (const S thigh : {S::LThigh, S::RThigh}) {
+        // The thigh's axis points down its segment frame's -y.
+        const Vec3d axis = pose.qWorld[static_cast<std::size_t>(idx(thigh))] * Vec3d(0, -1, 0);
+        if (-axis.y() > cosMax) {
+            return false;
+        }
+    }
+    // Off its feet: the centre of mass further across from the feet's support (the hull of the
+    // points near the floor) than half a foot's width. Standing, squatting or crouching, the
+    // body keeps its centre of mass over its feet or it falls.
+    std::array<Vec2d, 6> support{};
+    std::size_t n = 0;
+    for (const Vec3d& p : feet) {
+        if (p.y() - minY <= options_.heightM) {
+            support[n++] = Vec2d(p.x(), p.z());
+        }
+    }
+    // Moving, the extrapolated centre of mass (Hof 2005: the centre of mass plus its velocity
+    // over the pendulum's eigenfrequency sqrt(g / l)) is what must stay over the feet: landing a
+    // forward jump the centre of mass is behind the feet but on its way over them.
+    const Vec3d comVelocity = smoothVelocity_ + comVelocityAboutRoot;
+    const double legM = std::max(com.y() - minY, 0.1);
+    const Vec3d xcom = com + comVelocity * std::sqrt(legM / options_.gravityMps2);
+    return distanceToHull(Vec2d(xcom.x(), xcom.z()), support, n) > options_.offFeetM;
 }
 
 Vec3d RootTracker::takeoffHorizontalComVelocity() const {

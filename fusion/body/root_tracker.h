@@ -37,10 +37,22 @@ struct ContactOptions {
     // so the horizontal velocity changes little over it, and a mean over frames does not take
     // one frame's finite difference of a fast-changing shape.
     double takeoffWindowS = 0.1;
+    // Sitting: with both thighs at least this far from the vertical (deg), the seat (a point on
+    // the pelvis below the middle of the hip joints, near the ischial tuberosities; pelvis
+    // frame) can carry the body. Standing, walking and running keep a thigh within 30 deg of
+    // the vertical; sitting on a stool or a chair takes both past 45.
+    double seatedThighDeg = 45;
+    Vec3d seatBelowHipsM = Vec3d(0, -0.08, -0.04);
+    // ... and with the centre of mass further across than this (m, half a foot's width) from
+    // the support of the foot points near the floor: off its feet, the body is on the seat.
+    double offFeetM = 0.05;
+    // ... for this long (s): a sitting is a state, not the instant of a landing or a push-off
+    // (the centre of mass passes behind the feet for a frame or two there).
+    double seatedForS = 0.1;
     double gravityMps2 = 9.81;
 };
 
-enum class ContactPhase : std::uint8_t { LeftStance, RightStance, Flight };
+enum class ContactPhase : std::uint8_t { LeftStance, RightStance, Flight, Seated };
 
 // The feet's contact points in one frame: heel, ball, toe tip of each foot, world, with their
 // velocities.
@@ -87,11 +99,17 @@ public:
     const Vec3d& rootM() const { return root_; }
     const Vec3d& rootVelocityMps() const { return velocity_; }
     ContactPhase phase() const { return phase_; }
-    int contactPoint() const { return point_; }  // 0-5 as in FootState, -1 in flight
+    // 0-5 as in FootState, 6 the seat, -1 in flight.
+    int contactPoint() const { return point_; }
     int stanceChanges() const { return stanceChanges_; }
 
 private:
     Vec3d takeoffHorizontalComVelocity() const;
+    // A sitting posture with the body off its feet, in which the seat may carry it
+    // (ContactOptions::seatedThighDeg, offFeetM): feet relative to the root, minY the lowest of
+    // them, com the centre of mass from the root and its velocity about the root.
+    bool seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY, const Vec3d& com,
+                const Vec3d& comVelocityAboutRoot) const;
 
     ContactOptions options_;
     Vec3d root_ = Vec3d::Zero();
@@ -107,6 +125,9 @@ private:
     // The feet's sensors relative to the root at the latest frame, when the feet were given.
     std::array<Vec3d, 2> footSensorRelM_{Vec3d::Zero(), Vec3d::Zero()};
     bool footSensorsKnown_ = false;
+    // The seat relative to the root at the latest frame: its velocity.
+    Vec3d seatRelM_ = Vec3d::Zero();
+    double offFeetS_ = 0;  // how long the body has been off its feet in a sitting posture
     // The centre of mass at the end of the latest frames in stance (world) and their durations,
     // a ring (the newest at comHistoryHead_): the take-off's horizontal velocity.
     struct ComSample {

@@ -189,6 +189,89 @@ TEST(RootTracker, APlantedFootThatSlipsCarriesTheRootWithIt) {
     EXPECT_LT(run(false, false).norm(), 1e-12);
 }
 
+// Sitting: thighs forward (hips -90 deg), shanks at kneeDeg from the thighs, the feet flat
+// with the shanks vertical; the trunk upright.
+Pose sitPose(double kneeDeg) {
+    Pose p;
+    for (S t : {S::LThigh, S::RThigh}) {
+        p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(-90 * kDeg, Vec3d::UnitX()));
+    }
+    for (S c : {S::LCalf, S::RCalf}) {
+        p.qLocal[idx(c)] = Quatd(Eigen::AngleAxisd(kneeDeg * kDeg, Vec3d::UnitX()));
+    }
+    return p;
+}
+
+double lowestFootPoint(const BodySolver& s) {
+    double lowest = 1e9;
+    for (const Vec3d& p : s.feet().pointM) {
+        lowest = std::min(lowest, p.y());
+    }
+    return lowest + s.pose().positionM[0].y();
+}
+
+TEST(RootTracker, SeatedTheSeatCarriesTheBodyWhileTheFeetLift) {
+    // Sitting with the feet on the floor, the centre of mass over the seat, well behind the
+    // feet: after 0.1 s the seat carries the body. The legs then stretch out (the knees from
+    // 90 to 30 deg), lifting the feet off the floor: the root must stay where it is. Held on
+    // the lowest foot point, as before the seat, it would sink with the feet as they rise.
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    for (int k = 0; k < 20; ++k) {
+        s.solve(frameOf(sitPose(90)), 0.01);
+    }
+    ASSERT_EQ(s.rootTracker().phase(), ContactPhase::Seated);
+    EXPECT_EQ(s.rootTracker().contactPoint(), 6);
+    const Vec3d seated = s.pose().positionM[0];
+    for (int k = 1; k <= 50; ++k) {
+        s.solve(frameOf(sitPose(90 - 60.0 * k / 50)), 0.01);
+        EXPECT_EQ(s.rootTracker().phase(), ContactPhase::Seated) << "frame " << k;
+        EXPECT_LT((s.pose().positionM[0] - seated).norm(), 1e-9) << "frame " << k;
+    }
+    EXPECT_GT(lowestFootPoint(s), 0.1);  // the feet are well off the floor
+    // The feet back on the floor, then drawn back under the hips (into a 60 deg crouch): once
+    // the centre of mass is over them they carry the body again, on the floor.
+    for (int k = 1; k <= 50; ++k) {
+        s.solve(frameOf(sitPose(30 + 60.0 * k / 50)), 0.01);
+    }
+    EXPECT_NEAR(lowestFootPoint(s), 0, 1e-9);
+    bool released = false;
+    for (int k = 1; k <= 50; ++k) {
+        const double u = k / 50.0;
+        Pose p;
+        for (S t : {S::LThigh, S::RThigh}) {
+            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd((-90 + 30 * u) * kDeg, Vec3d::UnitX()));
+        }
+        for (S c : {S::LCalf, S::RCalf}) {
+            p.qLocal[idx(c)] = Quatd(Eigen::AngleAxisd((90 + 30 * u) * kDeg, Vec3d::UnitX()));
+        }
+        for (S f : {S::LHindfoot, S::RHindfoot}) {
+            p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-60 * u * kDeg, Vec3d::UnitX()));
+        }
+        s.solve(frameOf(p), 0.01);
+        released = released || s.rootTracker().phase() != ContactPhase::Seated;
+        if (released) {
+            EXPECT_NE(s.rootTracker().phase(), ContactPhase::Seated) << "frame " << k;
+            EXPECT_NEAR(lowestFootPoint(s), 0, 1e-9) << "frame " << k;
+        }
+    }
+    EXPECT_TRUE(released);
+}
+
+TEST(RootTracker, ACrouchOverTheFeetIsNotASeat) {
+    // Both thighs as far from the vertical as sitting, but the centre of mass over the feet: a
+    // squat is carried by the feet, whose lowest point stays on the floor all the way down and
+    // up again.
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    for (int k = 0; k <= 100; ++k) {
+        const double a = 75 * std::sin(std::numbers::pi * k / 100);
+        s.solve(frameOf(crouchPose(a * kDeg, 0)), 0.01);
+        EXPECT_NE(s.rootTracker().phase(), ContactPhase::Seated) << "frame " << k;
+        EXPECT_NEAR(lowestFootPoint(s), 0, 1e-9) << "frame " << k;
+    }
+}
+
 TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
     const Dimensions d = dims();
     BodySolver s = makeSolver(d);
