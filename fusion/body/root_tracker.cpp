@@ -403,7 +403,7 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
     std::array<Vec2d, 6> support{};
     std::size_t n = 0;
     for (const Vec3d& p : feet) {
-        if (p.y() - minY <= options_.heightM) {
+        if (p.y() - minY <= options_.heightM && p.allFinite()) {
             support[n++] = Vec2d(p.x(), p.z());
         }
     }
@@ -413,6 +413,9 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
     const Vec3d comVelocity = smoothVelocity_ + comVelocityAboutRoot;
     const double legM = std::max(com.y() - minY, 0.1);
     const Vec3d xcom = com + comVelocity * std::sqrt(legM / options_.gravityMps2);
+    if (n == 0 || !xcom.allFinite()) {
+        return false;  // nothing to say (a pose that is not finite)
+    }
     return distanceToHull(Vec2d(xcom.x(), xcom.z()), support, n) > options_.offFeetM;
 }
 
