@@ -58,6 +58,12 @@ public:
         std::lock_guard lock(mutex_);
         return latest_;
     }
+    // Values published so far (any thread); a value published while another is being written
+    // replaces the one pending, so fewer may be written.
+    std::uint64_t published() const {
+        std::lock_guard lock(mutex_);
+        return published_;
+    }
     // Values written so far (any thread).
     std::uint64_t written() const {
         std::lock_guard lock(mutex_);

@@ -56,7 +56,11 @@ public:
     // The last save, waited for.
     void finish(Timestamp now) override;
 
-    // Files written so far, and why the last write failed (empty: it did not). Any thread.
+    // Saves handed to the writer so far (every `every` and the end); files written so far (a save
+    // that comes while the file is being written replaces the one pending, so under load fewer
+    // than the saves, the last always); and why the last write failed (empty: it did not). Any
+    // thread.
+    std::uint64_t saves() const { return writer_.published(); }
     std::uint64_t written() const;
     std::string error() const;
 
