@@ -142,7 +142,10 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
         }
     }
     root_ = Vec3d(rootXM, -lowest, rootZM);
-    floorYM = 0;
+    levels_[0] = 0;  // the floor
+    levelCount_ = 1;
+    takeoffLevelM_ = 0;
+    stillForS_ = {0, 0};
     velocity_.setZero();
     smoothVelocity_.setZero();
     fusedVelocity_.setZero();
@@ -160,7 +163,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     const int seg = idx(lowestIndex < 3 ? S::LHindfoot : S::RHindfoot);
     const auto& pts = lowestIndex < 3 ? d.leftFootPointM : d.rightFootPointM;
     anchor_ = pointOnSegment(pose, seg, pts[static_cast<std::size_t>(lowestIndex % 3)]);
-    anchor_.y() = floorYM;
+    anchor_.y() = 0;
     seatRelM_ = seatOnPose(pose, options_) - root_;
     offFeetS_ = 0;
     started_ = true;
@@ -185,6 +188,10 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     // as the legs tuck and swing), which no support gives.
     freeFallCount_ = force && force->y() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
     const Vec3d comOffset = centreOfMassOffsetM(d, pose);
+    for (std::size_t f = 0; f < 2; ++f) {
+        const bool still = footSensors != nullptr && footSensors->still[f];
+        stillForS_[f] = still ? stillForS_[f] + dtS : 0;
+    }
     // The seat relative to the root, and its velocity.
     const Vec3d seat = seatOnPose(pose, options_);
     const Vec3d seatVelocity = dtS > 0 ? Vec3d((seat - seatRelM_) / dtS) : Vec3d::Zero();
@@ -206,6 +213,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     if (phase_ != ContactPhase::Flight && freeFallCount_ == options_.flightFrames) {
         phase_ = ContactPhase::Flight;
         point_ = -1;
+        takeoffLevelM_ = anchor_.y();
         const Vec3d g(0, options_.gravityMps2, 0);
         com_ = takeoffCom_ + (takeoffComVelocity_ - 0.5 * g * freeFallS_) * freeFallS_;
         comVerticalVelocity_ = takeoffComVelocity_.y() - options_.gravityMps2 * freeFallS_;
@@ -246,19 +254,20 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         if (dtS > 0) {
             velocity_ = (next - root_) / dtS;
         }
-        if (next.y() + minY <= floorYM && comVerticalVelocity_ <= 0) {
-            // Landing: the lowest foot point touches the floor and becomes the anchor.
+        if (next.y() + minY <= takeoffLevelM_ && comVerticalVelocity_ <= 0) {
+            // Landing: the lowest foot point touches the level it took off from and becomes
+            // the anchor.
             int lowest = 0;
             for (int k = 1; k < 6; ++k) {
                 if (r[static_cast<std::size_t>(k)].y() < r[static_cast<std::size_t>(lowest)].y()) {
                     lowest = k;
                 }
             }
-            next.y() = floorYM - minY;
+            next.y() = takeoffLevelM_ - minY;
             point_ = lowest;
             phase_ = lowest < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
             anchor_ = next + r[static_cast<std::size_t>(lowest)];
-            anchor_.y() = floorYM;
+            anchor_.y() = takeoffLevelM_;
             ++stanceChanges_;
         }
     } else {
@@ -284,18 +293,45 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         // rung, and the floor would pull the root down to them. Once the body is back over the
         // feet the seat no longer qualifies and the feet take over as before.
         const bool onSeat = isSeat(point_) && seatQualifies;
+        // A foot point qualifies near the lowest foot point, or near the lowest point of a foot
+        // at rest on something a level's step above it (a tread, a step).
+        std::array<double, 2> footMinY{std::numeric_limits<double>::max(),
+                                       std::numeric_limits<double>::max()};
+        for (std::size_t k = 0; k < r.size(); ++k) {
+            footMinY[k / 3] = std::min(footMinY[k / 3], r[k].y());
+        }
+        auto resting = [&](int k) {
+            return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
+        };
         auto qualifies = [&](int k) {
             if (isSeat(k)) {
                 return seatQualifies;
             }
-            return !onSeat && r[static_cast<std::size_t>(k)].y() - minY <= options_.heightM;
+            // A foot at rest takes the body on its own level when that is a step above the
+            // lowest point, and keeps it there while it rests.
+            const auto u = static_cast<std::size_t>(k);
+            const bool onOtherLevel = footMinY[u / 3] - minY > options_.levelSnapM ||
+                                      (!isSeat(point_) && point_ / 3 == k / 3);
+            return !onSeat &&
+                   (r[u].y() - minY <= options_.heightM ||
+                    (resting(k) && onOtherLevel && r[u].y() - footMinY[u / 3] <= options_.heightM));
         };
         // Where the held point puts the root: on the seat, where the seat is; on a foot, the
-        // lowest foot point on the floor.
+        // lowest foot point on the anchor's level, leaving out a foot below it (the other
+        // foot below a tread's edge).
         auto placeOn = [&](int k) {
             Vec3d at = anchor_ - relative(k);
             if (!isSeat(k)) {
-                at.y() = floorYM - minY;
+                // The lowest of the points on the held one's support (not below it by more
+                // than heightM) stands on its level.
+                const double y = r[static_cast<std::size_t>(k)].y();
+                double lowest = y;
+                for (const Vec3d& p : r) {
+                    if (p.y() >= y - options_.heightM) {
+                        lowest = std::min(lowest, p.y());
+                    }
+                }
+                at.y() = anchor_.y() - lowest;
             }
             return at;
         };
@@ -324,11 +360,21 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
                 ++stanceChanges_;
             }
+            const int held = point_;
             point_ = best;
             phase_ = isSeat(best) ? ContactPhase::Seated
                      : best < 3   ? ContactPhase::LeftStance
                                   : ContactPhase::RightStance;
+            // The new point's level: its height under the held point itself, not under the
+            // lowest foot point (in a push-off the rigid foot's toe tip dips below the floor it
+            // stands on, and would put a foot that is on the floor above it).
+            const double height = isSeat(held)
+                                      ? here.y() + r[static_cast<std::size_t>(best)].y()
+                                      : anchor_.y() - relative(held).y() + relative(best).y();
             anchor_ = here + relative(best);
+            if (!isSeat(best)) {
+                anchor_.y() = supportLevel(height, resting(best));
+            }
         }
         // The anchored point slips when its foot, rolling off the floor, moves in the world:
         // the foot's dead reckoning says by how much (the foot is rigid: the point's velocity
@@ -417,6 +463,32 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
         return false;  // nothing to say (a pose that is not finite)
     }
     return distanceToHull(Vec2d(xcom.x(), xcom.z()), support, n) > options_.offFeetM;
+}
+
+double RootTracker::supportLevel(double heightM, bool resting) {
+    std::size_t nearest = 0;
+    std::size_t below = 0;  // the floor when no other is below
+    for (std::size_t i = 0; i < levelCount_; ++i) {
+        if (std::abs(levels_[i] - heightM) < std::abs(levels_[nearest] - heightM)) {
+            nearest = i;
+        }
+        if (levels_[i] <= heightM && (levels_[below] > heightM || levels_[i] > levels_[below])) {
+            below = i;
+        }
+    }
+    if (std::abs(levels_[nearest] - heightM) <= options_.levelSnapM) {
+        return levels_[nearest];
+    }
+    if (!resting) {
+        return levels_[below];  // no evidence of a support where it is
+    }
+    // A new level; when they are all taken the oldest but the floor makes room.
+    if (levelCount_ == kLevels) {
+        std::rotate(levels_.begin() + 1, levels_.begin() + 2, levels_.end());
+        --levelCount_;
+    }
+    levels_[levelCount_++] = heightM;
+    return heightM;
 }
 
 Vec3d RootTracker::takeoffHorizontalComVelocity() const {

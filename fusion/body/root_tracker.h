@@ -1,7 +1,8 @@
 // Root translation from foot contacts: the foot point that is still (heel, ball or toe of either
 // foot) is held where it is and the root follows it; with both feet off the floor (a jump) the
 // root flies ballistically.
-// Assumes a flat, level floor at the height the feet had at reset (docs/skeleton.md).
+// The floor is at the height the feet had at reset; a foot at rest on a tread or a step above or
+// below it makes a level of its own (docs/skeleton.md).
 #pragma once
 
 #include <array>
@@ -12,8 +13,17 @@
 namespace caphub::body {
 
 struct ContactOptions {
-    // A foot point can carry the body when it is within this of the lowest foot point (m).
+    // A foot point can carry the body when it is within this of the lowest foot point, or of
+    // the lowest point of a foot at rest on something (m).
     double heightM = 0.04;
+    // At rest: the foot's own sensor still for this long (s). A swinging foot is still for an
+    // instant at its turning points; one standing on a step, a stair's tread or the floor for
+    // longer.
+    double restingS = 0.1;
+    // Where a foot point takes over the body, its height joins the support level it is within
+    // this of (the floor, a tread, a step); a foot at rest further from every known level
+    // starts a new one (m); any other point is taken to stand on the highest known level below.
+    double levelSnapM = 0.10;
     // The point that carries the body is the one that moves least in the world: each point's
     // world velocity is predicted from its velocity relative to the root (the Jacobian and the
     // joint rates) plus the root velocity, low-passed with this time constant (s) so that the
@@ -144,7 +154,15 @@ private:
     Vec3d anchor_ = Vec3d::Zero();          // world position of the contact point
     int point_ = -1;
     ContactPhase phase_ = ContactPhase::LeftStance;
-    double floorYM = 0;
+    // The heights the feet have stood on (the floor, at 0, first); the anchor's height is one of
+    // them while a foot carries the body.
+    static constexpr std::size_t kLevels = 16;
+    std::array<double, kLevels> levels_{};
+    std::size_t levelCount_ = 1;
+    double takeoffLevelM_ = 0;
+    std::array<double, 2> stillForS_{};  // how long each foot's sensor has been still
+    // The level a point taking over the body at heightM stands on (a foot at rest there or not).
+    double supportLevel(double heightM, bool resting);
     int freeFallCount_ = 0;
     int stanceChanges_ = 0;
     bool started_ = false;
