@@ -222,12 +222,12 @@ std::string jumpClip(const std::filesystem::path& walkClip) {
     });
 }
 
-std::string stairsClip(const std::filesystem::path& walkClip) {
+std::string stairsClip(const std::filesystem::path& walkClip, double riseM) {
     const CmuRig rig(walkClip);
     constexpr double kStandS = 1.0;
     constexpr double kSwingS = 0.6;  // the right foot onto the next tread
     constexpr double kRaiseS = 0.9;  // the body over it; the left foot follows in its second half
-    const Vector2d tread(kStairGoingM, kStairRiseM);
+    const Vector2d tread(kStairGoingM, riseM);
     // A foot's swing from a to b: forward eased, up over an arc that clears the higher tread by
     // 0.08 m; it meets the tread with no speed.
     auto swing = [](const Vector2d& a, const Vector2d& b, double x) {
@@ -276,17 +276,23 @@ std::string stairsClip(const std::filesystem::path& walkClip) {
         }
         const double u = t - kStandS - k * stepS;
         const Vector2d to = from + tread;
+        // Going down, the left knee bends while the right foot swings, the hips moving half a
+        // tread ahead and down to 0.02 m below where they will stand, so that the right leg
+        // reaches the lower tread as the swing ends.
+        const Vector2d dip =
+            riseM < 0 ? Vector2d(from + Vector2d(0.5 * kStairGoingM, riseM - 0.02)) : from;
         if (u < kSwingS) {
+            p.root = from + (dip - from) * ease(u / kSwingS);
             p.ankle[1] = swing(from, to, u / kSwingS);
             return p;
         }
         const double x = (u - kSwingS) / kRaiseS;
-        p.root = from + (to - from) * ease(x);
+        p.root = dip + (to - dip) * ease(x);
         p.ankle[1] = to;
         // The left heel rises as far as the hips need (the foot turning about its ball, which
         // stays on the tread) until the toe leaves at x = 0.5; it then swings up beside the right
         // one, the foot flattening.
-        const double raised = heelUp(from + (to - from) * ease(std::min(x, 0.5)), from);
+        const double raised = heelUp(dip + (to - dip) * ease(std::min(x, 0.5)), from);
         if (x <= 0.5) {
             p.ankle[0] = onBall(from, raised);
             p.heelUpRad[0] = raised;

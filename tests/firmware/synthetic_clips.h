@@ -15,13 +15,13 @@ inline constexpr double kJumpTakeoffMps = 1.4;
 inline constexpr double kGravityMps2 = 9.81;
 std::string jumpClip(const std::filesystem::path& walkClip);
 
-// Up a stair of kStairSteps treads (kStairRiseM up and kStairGoingM ahead each): stand 1 s;
-// per step the right foot swings onto the next tread, the body moves over it and up, the left
-// foot leaves its tread once the hip is out of its reach and swings up beside the right one;
-// stand 1 s at the top.
+// A stair of kStairSteps treads (riseM up, or down when negative, and kStairGoingM ahead each):
+// stand 1 s; per step the right foot swings onto the next tread (going down it reaches it as the
+// body lowers), the body moves over it, the left foot leaves its tread (going up once the heel,
+// risen about the ball, no longer lets it reach) and swings beside the right one; stand 1 s.
 inline constexpr int kStairSteps = 3;
 inline constexpr double kStairRiseM = 0.17;
 inline constexpr double kStairGoingM = 0.30;
-std::string stairsClip(const std::filesystem::path& walkClip);
+std::string stairsClip(const std::filesystem::path& walkClip, double riseM = kStairRiseM);
 
 }  // namespace caphub::testing
