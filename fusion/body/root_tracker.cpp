@@ -188,6 +188,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     // as the legs tuck and swing), which no support gives.
     freeFallCount_ = force && force->y() < options_.freeFallMps2 ? freeFallCount_ + 1 : 0;
     const Vec3d comOffset = centreOfMassOffsetM(d, pose);
+    const Vec3d comRate = dtS > 0 ? Vec3d((comOffset - comOffset_) / dtS) : Vec3d::Zero();
     for (std::size_t f = 0; f < 2; ++f) {
         const bool still = footSensors != nullptr && footSensors->still[f];
         stillForS_[f] = still ? stillForS_[f] + dtS : 0;
@@ -271,126 +272,8 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             ++stanceChanges_;
         }
     } else {
-        // The anchored point is the one predicted to move least in the world. Its velocity
-        // relative to the root plus the (low-passed) root velocity predicts its world velocity;
-        // only points near the floor qualify, and the seat while the subject sits. The anchor
-        // is continuous across a change of point (the new point is held where it is now), so a
-        // change never makes the root jump: drift comes only from holding a point that in truth
-        // moves, which this choice minimises.
-        const Vec3d comRate = dtS > 0 ? Vec3d((comOffset - comOffset_) / dtS) : Vec3d::Zero();
-        const bool offFeet = seated(pose, r, minY, comOffset, comRate);
-        offFeetS_ = offFeet ? offFeetS_ + dtS : 0;
-        const bool seatQualifies = offFeet && offFeetS_ >= options_.seatedForS - 1e-9;
-        auto relative = [&](int k) -> Vec3d {
-            return isSeat(k) ? seat : r[static_cast<std::size_t>(k)];
-        };
-        auto predictedSpeed = [&](int k) {
-            const Vec3d v =
-                isSeat(k) ? seatVelocity : feet.velocityMps[static_cast<std::size_t>(k)];
-            return (smoothVelocity_ + v).norm();
-        };
-        // While the seat carries the body no foot point does: the feet may hang or rest on a
-        // rung, and the floor would pull the root down to them. Once the body is back over the
-        // feet the seat no longer qualifies and the feet take over as before.
-        const bool onSeat = isSeat(point_) && seatQualifies;
-        // A foot point qualifies near the lowest foot point, or near the lowest point of a foot
-        // at rest on something a level's step above it (a tread, a step).
-        std::array<double, 2> footMinY{std::numeric_limits<double>::max(),
-                                       std::numeric_limits<double>::max()};
-        for (std::size_t k = 0; k < r.size(); ++k) {
-            footMinY[k / 3] = std::min(footMinY[k / 3], r[k].y());
-        }
-        auto resting = [&](int k) {
-            return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
-        };
-        auto qualifies = [&](int k) {
-            if (isSeat(k)) {
-                return seatQualifies;
-            }
-            // A foot at rest takes the body on its own level when that is a step above the
-            // lowest point, and keeps it there while it rests.
-            const auto u = static_cast<std::size_t>(k);
-            const bool onOtherLevel = footMinY[u / 3] - minY > options_.levelSnapM ||
-                                      (!isSeat(point_) && point_ / 3 == k / 3);
-            return !onSeat &&
-                   (r[u].y() - minY <= options_.heightM ||
-                    (resting(k) && onOtherLevel && r[u].y() - footMinY[u / 3] <= options_.heightM));
-        };
-        // Where the held point puts the root: on the seat, where the seat is; on a foot, the
-        // lowest foot point on the anchor's level, leaving out a foot below it (the other
-        // foot below a tread's edge).
-        auto placeOn = [&](int k) {
-            Vec3d at = anchor_ - relative(k);
-            if (!isSeat(k)) {
-                // The lowest of the points on the held one's support (not below it by more
-                // than heightM) stands on its level.
-                const double y = r[static_cast<std::size_t>(k)].y();
-                double lowest = y;
-                for (const Vec3d& p : r) {
-                    if (p.y() >= y - options_.heightM) {
-                        lowest = std::min(lowest, p.y());
-                    }
-                }
-                at.y() = anchor_.y() - lowest;
-            }
-            return at;
-        };
-        const Vec3d here = placeOn(point_);
-        int best = -1;
-        double bestSpeed = std::numeric_limits<double>::max();
-        for (int k = 0; k <= kSeatPoint; ++k) {
-            if (!qualifies(k)) {
-                continue;
-            }
-            const double v = predictedSpeed(k);
-            if (v < bestSpeed) {
-                bestSpeed = v;
-                best = k;
-            }
-        }
-        // The body off its feet in a sitting posture is on the seat: the seat takes it at once,
-        // whatever the feet do (one lifted to a rung moves less in the world than the seat
-        // predicted from a root that the floor is pulling down with it).
-        if (seatQualifies && !isSeat(point_)) {
-            best = kSeatPoint;
-            bestSpeed = -1;
-        }
-        if (best != point_ &&
-            (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
-            if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
-                ++stanceChanges_;
-            }
-            const int held = point_;
-            point_ = best;
-            phase_ = isSeat(best) ? ContactPhase::Seated
-                     : best < 3   ? ContactPhase::LeftStance
-                                  : ContactPhase::RightStance;
-            // The new point's level: its height under the held point itself, not under the
-            // lowest foot point (in a push-off the rigid foot's toe tip dips below the floor it
-            // stands on, and would put a foot that is on the floor above it).
-            const double height = isSeat(held)
-                                      ? here.y() + r[static_cast<std::size_t>(best)].y()
-                                      : anchor_.y() - relative(held).y() + relative(best).y();
-            anchor_ = here + relative(best);
-            if (!isSeat(best)) {
-                anchor_.y() = supportLevel(height, resting(best));
-            }
-        }
-        // The anchored point slips when its foot, rolling off the floor, moves in the world:
-        // the foot's dead reckoning says by how much (the foot is rigid: the point's velocity
-        // is the sensor's plus the rate crossed with the lever from the sensor to the point).
-        const int foot = point_ < 3 ? 0 : 1;
-        const auto uf = static_cast<std::size_t>(foot);
-        if (!isSeat(point_) && footSensors != nullptr && footSensors->valid[uf] &&
-            !footSensors->still[uf] && dtS > 0) {
-            const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
-            const Vec3d slip =
-                footSensors->velocityMps[uf] +
-                footSensors->rateRadS[uf].cross(r[static_cast<std::size_t>(point_)] - sensor);
-            anchor_.x() += slip.x() * dtS;  // along the floor
-            anchor_.z() += slip.z() * dtS;
-        }
-        next = placeOn(point_);
+        next =
+            stanceStep(pose, feet, minY, footSensors, dtS, comOffset, comRate, seat, seatVelocity);
         velocity_ = dtS > 0 ? Vec3d((next - root_) / dtS) : Vec3d::Zero();
     }
     if (dtS > 0) {
@@ -407,7 +290,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     }
     root_ = next;
     if (dtS > 0) {
-        comOffsetRate_ = (comOffset - comOffset_) / dtS;
+        comOffsetRate_ = comRate;
     }
     comOffset_ = comOffset;
     seatRelM_ = seat;
@@ -431,6 +314,130 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     for (auto& p : pose.positionM) {
         p += shift;
     }
+}
+
+Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double minY,
+                              const FootSensorMotion* footSensors, double dtS,
+                              const Vec3d& comOffset, const Vec3d& comRate, const Vec3d& seat,
+                              const Vec3d& seatVelocity) {
+    // The anchored point is the one predicted to move least in the world. Its velocity
+    // relative to the root plus the (low-passed) root velocity predicts its world velocity;
+    // only points near the floor qualify, and the seat while the subject sits. The anchor
+    // is continuous across a change of point (the new point is held where it is now), so a
+    // change never makes the root jump: drift comes only from holding a point that in truth
+    // moves, which this choice minimises.
+    const auto& r = feet.pointM;  // relative to the root
+    const bool offFeet = seated(pose, r, minY, comOffset, comRate);
+    offFeetS_ = offFeet ? offFeetS_ + dtS : 0;
+    const bool seatQualifies = offFeet && offFeetS_ >= options_.seatedForS - 1e-9;
+    auto relative = [&](int k) -> Vec3d {
+        return isSeat(k) ? seat : r[static_cast<std::size_t>(k)];
+    };
+    auto predictedSpeed = [&](int k) {
+        const Vec3d v = isSeat(k) ? seatVelocity : feet.velocityMps[static_cast<std::size_t>(k)];
+        return (smoothVelocity_ + v).norm();
+    };
+    // While the seat carries the body no foot point does: the feet may hang or rest on a
+    // rung, and the floor would pull the root down to them. Once the body is back over the
+    // feet the seat no longer qualifies and the feet take over as before.
+    const bool onSeat = isSeat(point_) && seatQualifies;
+    // A foot point qualifies near the lowest foot point, or near the lowest point of a foot
+    // at rest on something a level's step above it (a tread, a step).
+    std::array<double, 2> footMinY{std::numeric_limits<double>::max(),
+                                   std::numeric_limits<double>::max()};
+    for (std::size_t k = 0; k < r.size(); ++k) {
+        footMinY[k / 3] = std::min(footMinY[k / 3], r[k].y());
+    }
+    auto resting = [&](int k) {
+        return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
+    };
+    auto qualifies = [&](int k) {
+        if (isSeat(k)) {
+            return seatQualifies;
+        }
+        // A foot at rest takes the body on its own level when that is a step above the
+        // lowest point, and keeps it there while it rests.
+        const auto u = static_cast<std::size_t>(k);
+        const bool onOtherLevel = footMinY[u / 3] - minY > options_.levelSnapM ||
+                                  (!isSeat(point_) && point_ / 3 == k / 3);
+        return !onSeat &&
+               (r[u].y() - minY <= options_.heightM ||
+                (resting(k) && onOtherLevel && r[u].y() - footMinY[u / 3] <= options_.heightM));
+    };
+    // Where the held point puts the root: on the seat, where the seat is; on a foot, the
+    // lowest foot point on the anchor's level, leaving out a foot below it (the other
+    // foot below a tread's edge).
+    auto placeOn = [&](int k) {
+        Vec3d at = anchor_ - relative(k);
+        if (!isSeat(k)) {
+            // The lowest of the points on the held one's support (not below it by more
+            // than heightM) stands on its level.
+            const double y = r[static_cast<std::size_t>(k)].y();
+            double lowest = y;
+            for (const Vec3d& p : r) {
+                if (p.y() >= y - options_.heightM) {
+                    lowest = std::min(lowest, p.y());
+                }
+            }
+            at.y() = anchor_.y() - lowest;
+        }
+        return at;
+    };
+    const Vec3d here = placeOn(point_);
+    int best = -1;
+    double bestSpeed = std::numeric_limits<double>::max();
+    for (int k = 0; k <= kSeatPoint; ++k) {
+        if (!qualifies(k)) {
+            continue;
+        }
+        const double v = predictedSpeed(k);
+        if (v < bestSpeed) {
+            bestSpeed = v;
+            best = k;
+        }
+    }
+    // The body off its feet in a sitting posture is on the seat: the seat takes it at once,
+    // whatever the feet do (one lifted to a rung moves less in the world than the seat
+    // predicted from a root that the floor is pulling down with it).
+    if (seatQualifies && !isSeat(point_)) {
+        best = kSeatPoint;
+        bestSpeed = -1;
+    }
+    if (best != point_ &&
+        (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
+        if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
+            ++stanceChanges_;
+        }
+        const int held = point_;
+        point_ = best;
+        phase_ = isSeat(best) ? ContactPhase::Seated
+                 : best < 3   ? ContactPhase::LeftStance
+                              : ContactPhase::RightStance;
+        // The new point's level: its height under the held point itself, not under the
+        // lowest foot point (in a push-off the rigid foot's toe tip dips below the floor it
+        // stands on, and would put a foot that is on the floor above it).
+        const double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
+                                           : anchor_.y() - relative(held).y() + relative(best).y();
+        anchor_ = here + relative(best);
+        if (!isSeat(best)) {
+            anchor_.y() = supportLevel(height, resting(best));
+        }
+    }
+    // The anchored point slips when its foot, rolling off the floor, moves in the world:
+    // the foot's dead reckoning says by how much (the foot is rigid: the point's velocity
+    // is the sensor's plus the rate crossed with the lever from the sensor to the point).
+    const int foot = point_ < 3 ? 0 : 1;
+    const auto uf = static_cast<std::size_t>(foot);
+    if (!isSeat(point_) && footSensors != nullptr && footSensors->valid[uf] &&
+        !footSensors->still[uf] && dtS > 0) {
+        const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
+        const Vec3d slip =
+            footSensors->velocityMps[uf] +
+            footSensors->rateRadS[uf].cross(r[static_cast<std::size_t>(point_)] - sensor);
+        anchor_.x() += slip.x() * dtS;  // along the floor
+        anchor_.z() += slip.z() * dtS;
+    }
+    return placeOn(point_);
 }
 
 bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY,

@@ -115,6 +115,12 @@ public:
 
 private:
     Vec3d takeoffHorizontalComVelocity() const;
+    // One frame on the ground: the point that carries the body (a foot point or the seat) chosen
+    // and held; where the root goes. comOffset and comRate: the centre of mass from the root and
+    // its velocity about it; seat and seatVelocity: the seat point relative to the root.
+    Vec3d stanceStep(const Pose& pose, const FootState& feet, double minY,
+                     const FootSensorMotion* footSensors, double dtS, const Vec3d& comOffset,
+                     const Vec3d& comRate, const Vec3d& seat, const Vec3d& seatVelocity);
     // A sitting posture with the body off its feet, in which the seat may carry it
     // (ContactOptions::seatedThighDeg, offFeetM): feet relative to the root, minY the lowest of
     // them, com the centre of mass from the root and its velocity about the root.

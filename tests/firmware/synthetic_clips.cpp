@@ -94,6 +94,10 @@ public:
 
     // The hips' height above the ankles when standing (m).
     double standM() const { return standM_; }
+    // The longer leg's reach, hip to ankle (m).
+    double legM() const {
+        return std::max(legs_[0].thighM + legs_[0].shinM, legs_[1].thighM + legs_[1].shinM);
+    }
 
     // The clip: frame 0 the T-pose, then `seconds` of `at(t)` at 120 Hz.
     std::string write(double seconds, const std::function<LegFrame(double)>& at) const {
@@ -150,12 +154,6 @@ private:
         setRotation(f, leg.up, upWorld);
         setRotation(f, leg.knee, upWorld.transpose() * kneeWorld);
         setRotation(f, leg.foot, kneeWorld.transpose() * rx(heelUpRad) * straight);
-    }
-
-public:
-    // The longer leg's reach, hip to ankle (m).
-    double legM() const {
-        return std::max(legs_[0].thighM + legs_[0].shinM, legs_[1].thighM + legs_[1].shinM);
     }
 
     std::string header_;
