@@ -210,8 +210,12 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     // Flight starts once per free fall: a landing while the accelerometer still reads free fall
     // (a take-off velocity a little low) stays landed. It starts where the ballistic path from
     // the take-off has got to by the previous frame: the frames that confirmed the free fall
-    // held the root on the feet, which no longer carry it.
-    if (phase_ != ContactPhase::Flight && freeFallCount_ == options_.flightFrames) {
+    // held the root on the feet, which no longer carry it. Not from the seat: a body shifting
+    // or bouncing on a seat reads free fall for a few hundredths of a second (on cmu_14_27's
+    // stool, at 100 poses a second two frames of it), and the seat stays under it; the body
+    // leaves the seat onto its feet (the seat stops qualifying), not into the air.
+    if (phase_ != ContactPhase::Flight && !isSeat(point_) &&
+        freeFallCount_ == options_.flightFrames) {
         phase_ = ContactPhase::Flight;
         point_ = -1;
         takeoffLevelM_ = anchor_.y();

@@ -258,6 +258,31 @@ TEST(RootTracker, SeatedTheSeatCarriesTheBodyWhileTheFeetLift) {
     EXPECT_TRUE(released);
 }
 
+TEST(RootTracker, ABounceOnTheSeatIsNotAFlight) {
+    // Seated with the feet off the floor (on a stool's rung), the pelvis accelerometer reads
+    // free fall for a few frames: the body shifting on the seat. The seat still carries it:
+    // no flight (which would land the body, feet first, on the level of the seat).
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    for (int k = 0; k < 20; ++k) {
+        s.solve(frameOf(sitPose(90)), 0.01, Vec3d(0, 9.81, 0));
+    }
+    for (int k = 1; k <= 30; ++k) {
+        s.solve(frameOf(sitPose(90 - 60.0 * k / 30)), 0.01, Vec3d(0, 9.81, 0));
+    }
+    ASSERT_EQ(s.rootTracker().phase(), ContactPhase::Seated);
+    const Vec3d seated = s.pose().positionM[0];
+    for (int k = 0; k < 5; ++k) {
+        s.solve(frameOf(sitPose(30)), 0.01, Vec3d(0, 0.5, 0));
+        EXPECT_EQ(s.rootTracker().phase(), ContactPhase::Seated) << "frame " << k;
+    }
+    for (int k = 0; k < 20; ++k) {
+        s.solve(frameOf(sitPose(30)), 0.01, Vec3d(0, 9.81, 0));
+    }
+    EXPECT_EQ(s.rootTracker().phase(), ContactPhase::Seated);
+    EXPECT_LT((s.pose().positionM[0] - seated).norm(), 1e-9);
+}
+
 TEST(RootTracker, ACrouchOverTheFeetIsNotASeat) {
     // Both thighs as far from the vertical as sitting, but the centre of mass over the feet: a
     // squat is carried by the feet, whose lowest point stays on the floor all the way down and
