@@ -211,10 +211,16 @@ const TrackedPose& BodyTracker::solveAt(Timestamp t) {
     }
     std::optional<Vec3d> rootSpecificForce;
     if (pelvisForceCount_ > 0) {
-        rootSpecificForce =
-            calibration_.qEnuWorld().conjugate() * (pelvisForceSumEnu_ / pelvisForceCount_);
+        lastPelvisForceEnu_ = pelvisForceSumEnu_ / pelvisForceCount_;
+        lastPelvisForceT_ = t;
         pelvisForceSumEnu_.setZero();
         pelvisForceCount_ = 0;
+    }
+    // Poses faster than the pelvis sensor: a pose between two readings takes the latest (the
+    // flight is confirmed over consecutive frames, and a frame without a reading would break
+    // it: at 120 poses a second from 100 Hz sensors no jump flew).
+    if (lastPelvisForceT_ && toSeconds(t - *lastPelvisForceT_) <= kPelvisHoldS) {
+        rootSpecificForce = calibration_.qEnuWorld().conjugate() * lastPelvisForceEnu_;
     }
     // The feet's dead reckoning at t, in the skeleton world frame.
     FootSensorMotion feet;
@@ -337,6 +343,7 @@ void BodyTracker::turnHeld(std::size_t i, double angleRad) {
             f = turn * f;
         }
         pelvisForceSumEnu_ = turn * pelvisForceSumEnu_;
+        lastPelvisForceEnu_ = turn * lastPelvisForceEnu_;
     }
     for (std::size_t k = 0; k < 2; ++k) {
         if (footSensor_[k] == static_cast<int>(i)) {

@@ -298,6 +298,12 @@ private:
     std::array<PelvisForce, kPelvisPending> pelvisPending_;
     std::size_t pelvisHead_ = 0;  // the oldest pending
     std::size_t pelvisCount_ = 0;
+    // The latest pose's mean (ENU) and its time: a pose that no new reading reached (poses
+    // faster than the pelvis sensor) takes it again, while the sensor is not silent for longer
+    // than kPelvisHoldS.
+    Vec3d lastPelvisForceEnu_ = Vec3d::Zero();
+    std::optional<Timestamp> lastPelvisForceT_;
+    static constexpr double kPelvisHoldS = 0.05;
 
     BodyCalibration calibration_;
     std::optional<CalibrationInput> calibrationInput_;  // none: the nominal mountings
