@@ -278,6 +278,20 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     } else {
         next =
             stanceStep(pose, feet, minY, footSensors, dtS, comOffset, comRate, seat, seatVelocity);
+        if (force && dtS > 0 && !isSeat(point_)) {
+            // Across, no faster a change of velocity than the pelvis accelerometer measures
+            // allows (ContactOptions::contactStepMps): the excess is the held point slipping.
+            const Vec3d predicted =
+                velocity_ + (*force - Vec3d(0, options_.gravityMps2, 0)) * dtS;
+            Vec3d excess = (next - root_) / dtS - predicted;
+            excess.y() = 0;
+            const double size = excess.norm();
+            if (size > options_.contactStepMps) {
+                const Vec3d slip = excess * ((1 - options_.contactStepMps / size) * dtS);
+                next -= slip;
+                anchor_ -= slip;
+            }
+        }
         velocity_ = dtS > 0 ? Vec3d((next - root_) / dtS) : Vec3d::Zero();
     }
     if (dtS > 0) {

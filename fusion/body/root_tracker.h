@@ -59,6 +59,15 @@ struct ContactOptions {
     // ... for this long (s): a sitting is a state, not the instant of a landing or a push-off
     // (the centre of mass passes behind the feet for a frame or two there).
     double seatedForS = 0.1;
+    // What the pelvis accelerometer allows the contacts: the root's velocity from the held
+    // point may differ from the one the accelerometer predicts (the previous frame's plus the
+    // measured acceleration) by this much in one frame (m/s); beyond it the rest of the step is
+    // taken as the held point slipping and left out. A leg whose orientation jumps (a clipped
+    // gyroscope, a capture that flips a leg about its long axis) or a hand-over between the
+    // feet in a push-off moves the root by centimetres in a frame that no force moved the body
+    // by. Above the frame-to-frame spread of walking and turning at 30-100 poses a second
+    // (99th percentile 0.18-0.38 m/s on the shared clips): docs/skeleton.md, "Slips".
+    double contactStepMps = 0.3;
     double gravityMps2 = 9.81;
 };
 

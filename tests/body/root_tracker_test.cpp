@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -281,6 +282,49 @@ TEST(RootTracker, ABounceOnTheSeatIsNotAFlight) {
     }
     EXPECT_EQ(s.rootTracker().phase(), ContactPhase::Seated);
     EXPECT_LT((s.pose().positionM[0] - seated).norm(), 1e-9);
+}
+
+TEST(RootTracker, LegsThatJumpInOneFrameDoNotThrowTheRootWhenThePelvisFeltNothing) {
+    // Standing; for one frame both legs turn 5 deg sideways at the hips (as a gyroscope that
+    // clipped, or a capture that flips a leg, makes them), then back. Held on a foot point the
+    // root would move 7.5 cm across and back in 10 ms; the pelvis accelerometer reads 1 g and
+    // nothing else, so the root moves by no more than contactStepMps allows in a frame, and
+    // stays near where it stood. Without the accelerometer it follows the contacts as before.
+    const Dimensions d = dims();
+    auto sideways = [](double a) {
+        Pose p;
+        for (S t : {S::LThigh, S::RThigh}) {
+            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(a, Vec3d::UnitZ()));
+        }
+        for (S f : {S::LHindfoot, S::RHindfoot}) {
+            p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitZ()));
+        }
+        return p;
+    };
+    const Vec3d oneG(0, 9.81, 0);
+    for (const bool felt : {true, false}) {
+        BodySolver s = makeSolver(d);
+        const std::optional<Vec3d> force = felt ? std::optional<Vec3d>(oneG) : std::nullopt;
+        for (int k = 0; k < 30; ++k) {
+            s.solve(frameOf(sideways(0)), 0.01, force);
+        }
+        const Vec3d start = s.pose().positionM[0];
+        s.solve(frameOf(sideways(5 * kDeg)), 0.01, force);
+        const double jumpM = std::hypot(s.pose().positionM[0].x() - start.x(),
+                                        s.pose().positionM[0].z() - start.z());
+        for (int k = 0; k < 30; ++k) {
+            s.solve(frameOf(sideways(0)), 0.01, force);
+        }
+        const double afterM = std::hypot(s.pose().positionM[0].x() - start.x(),
+                                         s.pose().positionM[0].z() - start.z());
+        if (felt) {
+            EXPECT_LE(jumpM, ContactOptions{}.contactStepMps * 0.01 + 1e-9);
+            EXPECT_LT(afterM, 0.015);
+        } else {
+            EXPECT_GT(jumpM, 0.07);
+            EXPECT_LT(afterM, 1e-9);
+        }
+    }
 }
 
 TEST(RootTracker, ACrouchOverTheFeetIsNotASeat) {
