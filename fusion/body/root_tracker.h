@@ -65,8 +65,9 @@ struct ContactOptions {
     // taken as the held point slipping and left out. A leg whose orientation jumps (a clipped
     // gyroscope, a capture that flips a leg about its long axis) or a hand-over between the
     // feet in a push-off moves the root by centimetres in a frame that no force moved the body
-    // by. Above the frame-to-frame spread of walking and turning at 30-100 poses a second
-    // (99th percentile 0.18-0.38 m/s on the shared clips): docs/skeleton.md, "Slips".
+    // by. Above the frames' spread where nothing slips (the 99th percentile of walking,
+    // turning and sitting at 30-100 poses a second): docs/skeleton.md, "Slips the pelvis did
+    // not feel".
     double contactStepMps = 0.3;
     double gravityMps2 = 9.81;
 };
