@@ -219,6 +219,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     bodyOptions.calibrate = o.calibrate;
     bodyOptions.aidFilters = o.aidFilters;
     bodyOptions.footInertial = o.footInertial;
+    bodyOptions.kneeHeading = o.kneeHeading;
 
     // The subject holds the calibration pose (the T-pose without one) from the start as long as
     // `caphub run` asks for it (the averaging window and a margin), then blends into the clip. The
@@ -319,6 +320,10 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     r.mountingErrorMaxDeg = m.maxDeg;
     r.mountingErrorDeg = m.perSensorDeg;
     r.nominalMountingErrorMeanDeg = m.nominalMeanDeg;
+    if (const std::optional<double> knee = bodyStage.tracker().kneeHeadingError()) {
+        r.kneeHeadingErrorDeg = *knee * 180.0 / hal::kPi;
+    }
+    r.kneeHeadingApplied = o.kneeHeading == body::KneeHeadingMode::Live && r.kneeHeadingErrorDeg;
     for (const auto& sc : b.sensors) {
         const body::BodyCalibration& cal = bodyStage.calibration();
         r.nominalHeading.push_back(
@@ -332,6 +337,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         ReprocessOptions ro;
         ro.smooth = true;
         ro.smoothing = o.smoothing;
+        ro.kneeHeading = o.kneeHeading != body::KneeHeadingMode::Off;
         ro.poseRateHz = o.poseRateHz;
         ro.sensorCalibrations = o.sensorCalibrations;
         ro.dimensions = bodyOptions.dimensions;
@@ -378,6 +384,13 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         "deg max (the board's nominal ones: {:.2f} deg mean)\n\n",
         r.calibration, r.mountingErrorMeanDeg, r.mountingErrorMaxDeg,
         r.nominalMountingErrorMeanDeg);
+    if (r.kneeHeadingErrorDeg) {
+        out.insert(out.size() - 1,
+                   fmt::format("capture heading from the knees' axes: off by {:+.2f} deg ({})\n",
+                               *r.kneeHeadingErrorDeg,
+                               r.kneeHeadingApplied ? "corrected when known"
+                                                    : "not applied: --knee-heading live does"));
+    }
     {
         // The mountings far off (a heading that was free or unchecked at the calibration).
         std::string far;

@@ -17,6 +17,7 @@
 #include "board/sim/virtual_suit.h"
 #include "firmware/runtime/fusion_stage.h"
 #include "fusion/body/body_calibration.h"
+#include "fusion/body/knee_heading.h"
 #include "fusion/body/pose_score.h"
 #include "fusion/smoother.h"
 #include "hal/core/error.h"
@@ -52,6 +53,8 @@ struct EvaluateOptions {
     bool aidFilters = true;
     // BodyStage::Options::footInertial: the planted foot's slip from its own sensor.
     bool footInertial = true;
+    // BodyStage::Options::kneeHeading: the capture heading from the knees' axes.
+    body::KneeHeadingMode kneeHeading = body::KneeHeadingMode::Estimate;
     // Also reprocess the capture's raw samples with the non-causal pass (`caphub reprocess
     // --smooth`, firmware/reprocess.h: the same calibration, pose rate and skeleton) and score
     // its poses against the same truth.
@@ -77,6 +80,10 @@ struct EvaluateResult {
     double mountingErrorMaxDeg = 0;
     std::vector<double> mountingErrorDeg;  // per board sensor
     double nominalMountingErrorMeanDeg = 0;
+    // What the knees' axes say the capture heading is off by at the end (deg; none before the
+    // legs moved enough or for a calibration it does not apply to), and whether it was applied.
+    std::optional<double> kneeHeadingErrorDeg;
+    bool kneeHeadingApplied = false;
     // Per board sensor at the end: its mounting's mode. true: nominal-heading (its heading was
     // free at the calibration and has not been measured since: the rotation about the vertical
     // is the nominal mounting's, the rest from gravity); false: measured.

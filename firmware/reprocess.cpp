@@ -525,6 +525,12 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
                     aid[k] = causal.fusion.bodyAcceleration().cast<float>();
                 }
             });
+            // The capture heading from the knees over the whole take (docs/body-calibration.md,
+            // "The capture heading from the knees"), for the one calibration the take has.
+            const body::BodyTracker& t = causal.body.tracker();
+            if (o.kneeHeading && t.calibrations() == 1) {
+                bodyOptions.knownHeadingErrorRad = t.kneeHeadingError();
+            }
         }
         smoothed = smoothAll(board, source, calibrations, aid, o);
     }
@@ -544,6 +550,9 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
     }
     ReprocessSummary summary;
     summary.durationS = durationS;
+    if (bodyOptions.knownHeadingErrorRad) {
+        summary.kneeHeadingDeg = *bodyOptions.knownHeadingErrorRad * 180 / std::numbers::pi;
+    }
     run(pass, &out, "fusion", {});
     if (o.progress) {
         o.progress("fusion", 1.0);

@@ -106,9 +106,12 @@ struct ReprocessOptions {
     std::optional<FusionStage::Calibrations> sensorCalibrations;
     double poseRateHz = 60;
     // The non-causal pass: orientations from a forward and a backward run of each sensor's
-    // filter over the whole take, combined; the root's drift corrected between still instants.
+    // filter over the whole take, combined.
     bool smooth = false;
     fusion::SmootherOptions smoothing;
+    // With smooth: the capture heading corrected from the knees' axes over the whole take, from
+    // the calibration on (docs/body-calibration.md, "The capture heading from the knees").
+    bool kneeHeading = true;
     // The body's skeleton (default: the board's [subject]); the evaluation gives the clip's.
     std::optional<body::Dimensions> dimensions;
     // Receives the poses solved (the evaluation scores them from a queue); may be null.
@@ -126,6 +129,10 @@ struct ReprocessSummary {
     std::string calibration;  // what was applied ("T-pose at 2.50 s", "none: nominal mountings")
     std::string calibrationError;
     double durationS = 0;  // of the recording's samples
+    // With --smooth: the capture heading's error the knees' axes showed over the whole take
+    // (deg), corrected from the calibration on; none when they could not say (too little
+    // walking, free headings, several calibrations, T+N).
+    std::optional<double> kneeHeadingDeg;
 };
 
 // Runs the recording's samples through fusion and body; everything goes to `out` in time order.

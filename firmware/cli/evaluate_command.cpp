@@ -37,6 +37,7 @@ struct EvaluateCliOptions {
     std::string magState;
     bool noBodyAiding = false;
     bool noFootInertial = false;
+    std::string kneeHeading = "estimate";
     bool reprocessSmooth = false;
     std::string smoothHeading = "causal";
     bool brief = false;
@@ -185,6 +186,9 @@ int evaluate(const EvaluateCliOptions& c) {
     o.poseRateHz = c.poseRateHz;
     o.aidFilters = !c.noBodyAiding;
     o.footInertial = !c.noFootInertial;
+    o.kneeHeading = c.kneeHeading == "off"    ? body::KneeHeadingMode::Off
+                    : c.kneeHeading == "live" ? body::KneeHeadingMode::Live
+                                              : body::KneeHeadingMode::Estimate;
     o.reprocessSmooth = c.reprocessSmooth;
     fusion::setSmoothHeading(o.smoothing, c.smoothHeading);
     o.magState = c.magState;
@@ -336,6 +340,11 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--no-foot-inertial", o->noFootInertial,
                   "Do not track the planted foot's slip with its own sensor (the root follows "
                   "the foot contacts alone): to see what it does");
+    cmd->add_option("--knee-heading", o->kneeHeading,
+                    "The capture heading from the knees' axes: estimate (report what they say), "
+                    "live (also correct it once known, mid-capture) or off "
+                    "(docs/body-calibration.md)")
+        ->check(CLI::IsMember({"off", "estimate", "live"}));
     cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
                   "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
                   "and score it: live against smoothed, a table at the end");

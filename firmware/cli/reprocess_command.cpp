@@ -44,6 +44,7 @@ struct ReprocessArgs {
     double poseRateHz = 60;
     bool smooth = false;
     std::string smoothHeading = "causal";
+    bool noKneeHeading = false;
 };
 
 // The new recording's header: the source's metadata, the sensor calibration replaced when
@@ -70,6 +71,7 @@ Result<std::string> reprocessedMetadata(const std::string& source, const Reproce
                   {"software", versionLine()},
                   {"smooth", a.smooth},
                   {"smooth_heading", a.smooth ? a.smoothHeading : std::string("")},
+                  {"knee_heading", a.smooth && !a.noKneeHeading},
                   {"pose_rate_hz", a.poseRateHz},
                   {"body_calibration", calibrationDone}};
     meta.insert_or_assign("reprocess", std::move(r));
@@ -111,6 +113,7 @@ int runReprocess(const ReprocessArgs& a) {
     ReprocessOptions o;
     o.poseRateHz = a.poseRateHz;
     o.smooth = a.smooth;
+    o.kneeHeading = !a.noKneeHeading;
     fusion::setSmoothHeading(o.smoothing, a.smoothHeading);
     o.calibration.atS = a.at;
     if (a.calibrate.empty()) {
@@ -257,6 +260,10 @@ int runReprocess(const ReprocessArgs& a) {
                summary->samples, summary->durationS, summary->orientations, summary->poses,
                a.poseRateHz, a.smooth ? ", smoothed" : "");
     fmt::print("body calibration: {}\n", summary->calibration);
+    if (summary->kneeHeadingDeg) {
+        fmt::print("capture heading from the knees' axes over the take: turned {:+.2f} deg\n",
+                   *summary->kneeHeadingDeg);
+    }
     fmt::print("{:.2f} s of computing: {:.0f}x real time\n", wallS,
                wallS > 0 ? summary->durationS / wallS : 0.0);
     return kExitOk;
@@ -284,10 +291,15 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
         ->check(CLI::Range(1.0, 1000.0))
         ->capture_default_str();
-    cmd->add_flag("--smooth", a->smooth,
-                  "Non-causal pass over the whole take: forward-backward orientations, the "
-                  "root's drift removed between still instants");
+    auto* smooth = cmd->add_flag("--smooth", a->smooth,
+                                 "Non-causal pass over the whole take: forward-backward "
+                                 "orientations, and the capture heading from the knees' axes over "
+                                 "the whole take (docs/reprocess.md)");
     addSmoothHeadingOption(*cmd, a->smoothHeading, "--smooth");
+    cmd->add_flag("--no-knee-heading", a->noKneeHeading,
+                  "With --smooth, keep the calibration's capture heading (do not correct it from "
+                  "the knees' axes)")
+        ->needs(smooth);
     cmd->callback([&exitCode, a] { exitCode = runReprocess(*a); });
 }
 

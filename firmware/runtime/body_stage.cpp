@@ -37,6 +37,8 @@ body::BodyTrackerOptions trackerOptions(const BodyStage::Options& o) {
     t.aidFilters = o.aidFilters;
     t.footInertial = o.footInertial;
     t.footInertialOptions = o.footInertialOptions;
+    t.kneeHeading = o.kneeHeading;
+    t.knownHeadingErrorRad = o.knownHeadingErrorRad;
     return t;
 }
 
@@ -96,6 +98,9 @@ void BodyStage::onSample(const SensorSample& s) {
         if (events.calibrated || events.calibrationFailed || events.headingReset ||
             events.headingResetFailed) {
             record(t, events);
+        }
+        if (events.kneeHeading) {
+            recordKneeHeading(t, events.kneeHeadingRad);
         }
     }
     // Poses on a fixed grid of the output rate, solved at the watermark: a grid point gets its
@@ -180,6 +185,20 @@ void BodyStage::recordReexpression(Timestamp t, int sensor, double angleRad) {
         return;
     }
     records_->event(t, cap::EventKind::Calibrated, sensor, 0, what);
+    records_->metadata(t, "[body_calibration]\ntext = " + tomlString(body::toText(cal)) + "\n");
+}
+
+void BodyStage::recordKneeHeading(Timestamp t, double angleRad) {
+    const body::BodyCalibration& cal = tracker_.calibration();
+    const std::string what = fmt::format(
+        "body calibration: capture heading from the knees' axes, turned {:.2f} deg; capture "
+        "heading {:.1f} deg",
+        angleRad * 180 / std::numbers::pi, cal.headingRad * 180 / std::numbers::pi);
+    log::logger(log::Category::Body).info("{}", what);
+    if (records_ == nullptr) {
+        return;
+    }
+    records_->event(t, cap::EventKind::Calibrated, -1, 0, what);
     records_->metadata(t, "[body_calibration]\ntext = " + tomlString(body::toText(cal)) + "\n");
 }
 

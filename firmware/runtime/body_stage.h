@@ -39,6 +39,10 @@ public:
         // off the floor; false: the foot contacts alone.
         bool footInertial = true;
         body::FootInertialOptions footInertialOptions;
+        // The capture heading from the knees' axes (body::KneeHeadingMode: estimated, or
+        // corrected live once known), or a correction known from the whole take (reprocess).
+        body::KneeHeadingMode kneeHeading = body::KneeHeadingMode::Estimate;
+        std::optional<double> knownHeadingErrorRad;
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations,
@@ -80,6 +84,8 @@ private:
     // A calibration re-expressed for a sensor's measured heading: an event and the new
     // calibration's metadata.
     void recordReexpression(Timestamp t, int sensor, double angleRad);
+    // The capture heading corrected from the knees' axes: logged, an event and the calibration.
+    void recordKneeHeading(Timestamp t, double angleRad);
     void publish(const body::TrackedPose& p, Timestamp newest, std::uint32_t notMeasured);
 
     FusionStage& fusion_;

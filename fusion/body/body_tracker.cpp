@@ -70,6 +70,9 @@ BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> se
     };
     pelvisSensor_ = sensorOf(Segment::Pelvis);
     footSensor_ = {sensorOf(Segment::LHindfoot), sensorOf(Segment::RHindfoot)};
+    thighSensor_ = {sensorOf(Segment::LThigh), sensorOf(Segment::RThigh)};
+    shankSensor_ = {sensorOf(Segment::LCalf), sensorOf(Segment::RCalf)};
+    kneeHeading_ = KneeHeading(options_.kneeHeadingOptions);
     footInertial_ = {FootInertial(options_.footInertialOptions),
                      FootInertial(options_.footInertialOptions)};
     out_.pose = &solver_.pose();
@@ -163,6 +166,10 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
                     FootSample{t, f.valid(), f.still(), f.velocityEnuMps(), f.rateEnuRadS()});
             }
         }
+    }
+    if (options_.kneeHeading != KneeHeadingMode::Off && !kneeHeadingDone_ &&
+        (u.sensor == shankSensor_[0] || u.sensor == shankSensor_[1])) {
+        addKneeSample(static_cast<std::size_t>(u.sensor), events);
     }
     if (u.sensor == pelvisSensor_) {
         if (pelvisCount_ == kPelvisPending) {
@@ -426,6 +433,74 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
     return events;
 }
 
+bool BodyTracker::kneeHeadingApplies() const {
+    // Only a calibration taken in one pose from magnetic headings: a free heading's mounting is
+    // the nominal one about the vertical (its own strap's turn, not the capture heading's, turns
+    // its knee), and T+N's arms come from gravity alone.
+    const CalibrationMethod method = calibration_.method;
+    return calibrationInput_ && freeAtCalibration() == 0 && calibration_.freeHeading == 0 &&
+           (method == CalibrationMethod::TPose || method == CalibrationMethod::NPose);
+}
+
+void BodyTracker::turnCaptureHeading(double errorRad) {
+    // The capture heading was off by the error: psi + error, and every mounting
+    // q_segment_sensor = q_W_segment(ref)^-1 q_ENU_W^-1 q_ENU_sensor turns with it.
+    const ReferencePoseKind pose = calibration_.method == CalibrationMethod::NPose
+                                       ? ReferencePoseKind::N
+                                       : ReferencePoseKind::T;
+    const Quatd turn(Eigen::AngleAxisd(-errorRad, Vec3d::UnitY()));
+    for (int i = 0; i < kSegmentCount; ++i) {
+        if ((calibration_.mask & bit(static_cast<Segment>(i))) == 0) {
+            continue;
+        }
+        const Quatd ref = referenceOrientation(pose, static_cast<Segment>(i));
+        auto& m = calibration_.mounting[static_cast<std::size_t>(i)];
+        m = (ref.conjugate() * turn * ref * m).normalized();
+    }
+    calibration_.headingRad =
+        std::remainder(calibration_.headingRad + errorRad, 2 * std::numbers::pi);
+    solver_.setCalibration(calibration_);
+    rootVelocityValid_ = false;  // the aiding's low-passed velocity is in the old world
+}
+
+std::optional<double> BodyTracker::kneeHeadingError() const {
+    return kneeHeadingApplies() ? kneeHeading_.headingErrorRad() : std::nullopt;
+}
+
+void BodyTracker::addKneeSample(std::size_t sensor, TrackerEvents& events) {
+    if (!kneeHeadingApplies()) {
+        return;
+    }
+    const int knee = static_cast<int>(sensor) == shankSensor_[0] ? 0 : 1;
+    const int thigh = thighSensor_[static_cast<std::size_t>(knee)];
+    if (thigh < 0) {
+        return;
+    }
+    const HeldOrientation& s = held_[sensor];
+    const HeldOrientation& th = held_[static_cast<std::size_t>(thigh)];
+    const Segment shankSegment = sensors_[sensor].segment;
+    const auto seg = static_cast<std::size_t>(idx(shankSegment));
+    if (s.count == 0 || th.count == 0 || (calibration_.mask & bit(shankSegment)) == 0) {
+        return;
+    }
+    // The shank's rate relative to the thigh's, ENU, then in the shank's segment frame.
+    const Quatd shankEnu = s.latest.cast<double>();
+    const Vec3d relativeEnu = shankEnu * s.rateRadS.cast<double>() -
+                              th.latest.cast<double>() * th.rateRadS.cast<double>();
+    kneeHeading_.add(knee, calibration_.mounting[seg] * (shankEnu.conjugate() * relativeEnu));
+    if (options_.kneeHeading != KneeHeadingMode::Live) {
+        return;
+    }
+    const std::optional<double> error = kneeHeading_.headingErrorRad();
+    if (!error) {
+        return;
+    }
+    turnCaptureHeading(*error);
+    kneeHeadingDone_ = true;
+    events.kneeHeading = true;
+    events.kneeHeadingRad = *error;
+}
+
 Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& in,
                                                         std::int64_t tNs) const {
     CalibrationOptions copt;
@@ -605,6 +680,16 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
     applyHeadingTurns();
     solver_.setCalibration(calibration_);
     solver_.resetRoot();
+    kneeHeading_.reset();
+    kneeHeadingDone_ = false;
+    ++calibrations_;
+    if (options_.knownHeadingErrorRad && calibrations_ == 1 && kneeHeadingApplies()) {
+        // Offline: the error the knees showed over the whole take, from the calibration on.
+        turnCaptureHeading(*options_.knownHeadingErrorRad);
+        kneeHeadingDone_ = true;
+        events.kneeHeading = true;
+        events.kneeHeadingRad = *options_.knownHeadingErrorRad;
+    }
     rootVelocityValid_ = false;
     calibrated_ = true;
     state_ = CalibrationStatus::State::Done;

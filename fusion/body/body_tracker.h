@@ -16,6 +16,7 @@
 
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
+#include "fusion/body/knee_heading.h"
 #include "fusion/body/foot_inertial.h"
 #include "hal/core/time.h"
 
@@ -46,6 +47,15 @@ struct BodyTrackerOptions {
     // without being declared offline: its segment is not valid in that pose. 0.25 s is 25
     // sample periods at 100 Hz, far beyond the skew between buses.
     Duration staleAfter = std::chrono::milliseconds(250);
+    // The capture heading from the knees' hinge axes (KneeHeading, fusion/body/knee_heading.h),
+    // for a T- or N-pose calibration whose sensors' headings were all magnetic: estimated
+    // (kneeHeadingError()), or also corrected live once known (once per calibration: the world
+    // turns by it then, mid-capture; docs/body-calibration.md).
+    KneeHeadingMode kneeHeading = KneeHeadingMode::Estimate;
+    KneeHeadingOptions kneeHeadingOptions;
+    // Offline: the error known from a pass over the whole take, corrected at the first
+    // calibration (reprocess --smooth).
+    std::optional<double> knownHeadingErrorRad;
     BodySolverOptions solver;
 };
 
@@ -99,6 +109,10 @@ struct TrackerEvents {
     // (realignHeading), and the calibration is now what it would have been with that sensor's
     // heading magnetic then.
     bool reexpressed = false;
+    // The capture heading was corrected from the knees' axes (BodyTrackerOptions::kneeHeading):
+    // calibration().headingRad turned by kneeHeadingRad and the mountings with it.
+    bool kneeHeading = false;
+    double kneeHeadingRad = 0;
     std::string message;  // a failure's reason
 };
 
@@ -195,6 +209,12 @@ public:
     const Pose& pose() const { return solver_.pose(); }
     const BodySolver& solver() const { return solver_; }
     const std::vector<TrackedSensor>& sensors() const { return sensors_; }
+    // What the knees say the capture heading of the calibration in use is off by (rad, the turn
+    // to add), from the samples since it; none before they have turned enough, or for a
+    // calibration it does not apply to (KneeHeadingMode).
+    std::optional<double> kneeHeadingError() const;
+    // Body calibrations completed so far.
+    int calibrations() const { return calibrations_; }
     Duration period() const { return period_; }
 
 private:
@@ -259,6 +279,13 @@ private:
     void average(const SensorUpdate& u);
     SensorFrame averagedFrame(const Window& w, SegmentMask only) const;
     void completeCalibration(Timestamp t, TrackerEvents& events);
+    // A knee's shank sample into the capture heading's estimate; the correction once it is known
+    // (KneeHeadingMode::Live).
+    void addKneeSample(std::size_t sensor, TrackerEvents& events);
+    // The calibration in use can be corrected from the knees (one pose, magnetic headings).
+    bool kneeHeadingApplies() const;
+    // The capture heading turned by errorRad and every mounting with it.
+    void turnCaptureHeading(double errorRad);
     // The calibration from its inputs (a heading reset done since, if any, added by the caller).
     Result<BodyCalibration> computeCalibration(const CalibrationInput& in, std::int64_t tNs) const;
     // The heading reset asked for, once t has reached its moment.
@@ -286,6 +313,13 @@ private:
     int pelvisSensor_ = -1;
     // The feet's sensors (-1 when none) and their dead reckoning.
     std::array<int, 2> footSensor_{-1, -1};
+    // The thighs' and shanks' sensors (-1 when none), left then right, and the capture heading
+    // from their knees: done once per calibration.
+    std::array<int, 2> thighSensor_{-1, -1};
+    std::array<int, 2> shankSensor_{-1, -1};
+    KneeHeading kneeHeading_;
+    bool kneeHeadingDone_ = false;
+    int calibrations_ = 0;  // completed
     std::array<FootInertial, 2> footInertial_;
     // Each foot's state after its latest samples: a pose is solved at the watermark, up to a
     // sample interval after its grid time, and takes the feet as they were at the grid time.

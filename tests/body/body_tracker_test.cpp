@@ -930,5 +930,117 @@ TEST(BodyTracker, RealigningDuringTheAverageTurnsWhatWasAveraged) {
     EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
 }
 
+
+// The capture heading from the knees (fusion/body/knee_heading.h). Every sensor turned by the
+// same 3 deg about its segment's long axis (a strap's turn about the vertical in the T-pose):
+// the calibration's capture heading, from the nominal mountings, is off by as much. Then the
+// legs walk in place (the thighs swinging 20 deg, the knees bending 0-60 deg at 1 Hz) for 3 s,
+// the sensors' rates from their orientations' change.
+struct KneeRun {
+    double headingRad = 0;        // the subject's true heading
+    double calibratedRad = 0;     // the calibration's capture heading
+    std::optional<double> knee;   // kneeHeadingError() at the end
+    int kneeEvents = 0;
+    double eventRad = 0;
+    double finalHeadingRad = 0;   // calibration().headingRad at the end
+    double mountingErrorRad = 0;  // worst, at the end
+};
+
+KneeRun walkOnTheKnees(BodyTrackerOptions o) {
+    Suit suit;
+    const double strap = 3 * kDeg;
+    for (auto& m : suit.trueMounting) {
+        m = (fromAxisAngle<double>(Vec3d::UnitY(), strap) * m).normalized();
+    }
+    BodyTracker tracker(skeleton(), suit.sensors, o);
+    KneeRun r;
+    r.headingRad = 30 * kDeg;
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    std::vector<Quatd> previous(suit.sensors.size(), Quatd::Identity());
+    tracker.startCalibration(ReferencePoseKind::T, at(500ms));
+    for (int k = 0; k < 500; ++k) {
+        const Timestamp t = at(kSample * k);
+        Pose pose = tpose;
+        const double s = std::max(0.0, (k - 200) * 0.01);  // walking from 2 s
+        if (s > 0) {
+            const double phase = 2 * kPi * s;
+            const double swing = 20 * kDeg * std::sin(phase);
+            const double bend = 30 * kDeg * (1 - std::cos(phase));
+            pose.qLocal[idx(S::LThigh)] = Quatd(Eigen::AngleAxisd(swing, Vec3d::UnitX()));
+            pose.qLocal[idx(S::RThigh)] = Quatd(Eigen::AngleAxisd(-swing, Vec3d::UnitX()));
+            pose.qLocal[idx(S::LCalf)] = Quatd(Eigen::AngleAxisd(bend, Vec3d::UnitX()));
+            pose.qLocal[idx(S::RCalf)] =
+                Quatd(Eigen::AngleAxisd(30 * kDeg * (1 + std::cos(phase)), Vec3d::UnitX()));
+            worldFromLocal(pose);
+        }
+        const SensorFrame f =
+            testing::sensorsFor(pose, suit.trueMounting, testing::kFullSuit, r.headingRad);
+        for (std::size_t i = 0; i < suit.sensors.size(); ++i) {
+            SensorUpdate u;
+            u.sensor = static_cast<int>(i);
+            u.t = t;
+            const Quatd q = f.qEnuSensor[static_cast<std::size_t>(idx(suit.sensors[i].segment))];
+            const Eigen::AngleAxisd step(previous[i].conjugate() * q);
+            u.rateRadS = (k == 0 ? Vec3d::Zero()
+                                 : Vec3d(step.axis() * step.angle() / toSeconds(kSample)))
+                             .cast<float>();
+            previous[i] = q;
+            u.qEnuSensor = q.cast<float>();
+            u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f);
+            const TrackerEvents e = tracker.update(u);
+            if (e.calibrated) {
+                r.calibratedRad = tracker.calibration().headingRad;
+            }
+            if (e.kneeHeading) {
+                ++r.kneeEvents;
+                r.eventRad = e.kneeHeadingRad;
+            }
+        }
+        solveDue(tracker, t);
+    }
+    r.knee = tracker.kneeHeadingError();
+    r.finalHeadingRad = tracker.calibration().headingRad;
+    r.mountingErrorRad = worstMountingError(tracker.calibration(), suit);
+    return r;
+}
+
+TEST(BodyTracker, TheKneesAxesSayHowFarTheCaptureHeadingIsOff) {
+    // Estimated only (the default): the calibration stays, and the error it reports is what the
+    // straps' common turn put into the capture heading.
+    const KneeRun r = walkOnTheKnees({});
+    EXPECT_GT(std::abs(r.calibratedRad - r.headingRad), 2.5 * kDeg);
+    ASSERT_TRUE(r.knee);
+    EXPECT_NEAR(r.calibratedRad + *r.knee, r.headingRad, 0.05 * kDeg);
+    EXPECT_EQ(r.kneeEvents, 0);
+    EXPECT_EQ(r.finalHeadingRad, r.calibratedRad);
+    EXPECT_GT(r.mountingErrorRad, 2.5 * kDeg);
+}
+
+TEST(BodyTracker, LiveTheKneesCorrectTheCaptureHeadingOnce) {
+    // Corrected live: once both knees have bent enough, the capture heading and every mounting
+    // turn by the error, once; the mountings are then the true ones.
+    BodyTrackerOptions o;
+    o.kneeHeading = KneeHeadingMode::Live;
+    const KneeRun r = walkOnTheKnees(o);
+    EXPECT_EQ(r.kneeEvents, 1);
+    EXPECT_NEAR(r.finalHeadingRad, r.headingRad, 0.05 * kDeg);
+    EXPECT_NEAR(r.calibratedRad + r.eventRad, r.headingRad, 0.05 * kDeg);
+    EXPECT_LT(r.mountingErrorRad, 0.05 * kDeg);
+}
+
+TEST(BodyTracker, AKnownCaptureHeadingErrorIsCorrectedAtTheCalibration) {
+    // Offline (reprocess --smooth): the error known from a pass over the whole take turns the
+    // first calibration as it is made.
+    const KneeRun estimated = walkOnTheKnees({});
+    ASSERT_TRUE(estimated.knee);
+    BodyTrackerOptions o;
+    o.knownHeadingErrorRad = *estimated.knee;
+    const KneeRun r = walkOnTheKnees(o);
+    EXPECT_EQ(r.kneeEvents, 1);
+    EXPECT_NEAR(r.calibratedRad, r.headingRad, 0.05 * kDeg);
+    EXPECT_LT(r.mountingErrorRad, 0.05 * kDeg);
+    EXPECT_FALSE(r.knee);  // nothing more to say once corrected
+}
+
 }  // namespace
 }  // namespace caphub::body
