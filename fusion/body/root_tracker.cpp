@@ -146,6 +146,9 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     levelCount_ = 1;
     takeoffLevelM_ = 0;
     stillForS_ = {0, 0};
+    plantedFoot_ = -1;
+    footSlow_ = {false, false};
+    landedRiseM_ = {};
     velocity_.setZero();
     smoothVelocity_.setZero();
     fusedVelocity_.setZero();
@@ -369,9 +372,52 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     auto resting = [&](int k) {
         return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
     };
+    // The feet's own sensors say which foot moves in the world: the held foot swinging while the
+    // other one, higher, stands still is a step up onto a tread (the trailing foot, below it and
+    // the lowest, leaves the floor). That foot is planted until it moves again.
+    const double kSwing = options_.swingMps;
+    const double kPlant = options_.plantedMps;
+    bool plantedNow = false;
+    if (footSensors != nullptr) {
+        auto speed = [&](std::size_t f) {
+            return footSensors->valid[f] ? footSensors->velocityMps[f].norm() : -1.0;
+        };
+        // Each foot's rise above the held foot as it comes to rest while the held one carries the
+        // body: a tread's height, before the held foot lifts.
+        for (std::size_t f = 0; f < 2; ++f) {
+            const double v = speed(f);
+            const bool slow = v >= 0 && v < kPlant;
+            if (slow && !footSlow_[f] && !isSeat(point_) && point_ >= 0 &&
+                static_cast<std::size_t>(point_ / 3) != f) {
+                landedRiseM_[f] = footMinY[f] - footMinY[1 - f];
+            } else if (!slow) {
+                landedRiseM_[f].reset();
+            }
+            footSlow_[f] = slow;
+        }
+        if (plantedFoot_ >= 0 && speed(static_cast<std::size_t>(plantedFoot_)) > kSwing) {
+            plantedFoot_ = -1;
+        }
+        if (!isSeat(point_) && point_ >= 0) {
+            const std::size_t held = static_cast<std::size_t>(point_ / 3);
+            const std::size_t other = 1 - held;
+            const double sh = speed(held);
+            const double so = speed(other);
+            if (plantedFoot_ != static_cast<int>(other) && sh > kSwing && so >= 0 && so < kPlant &&
+                footMinY[other] - minY > options_.heightM) {
+                plantedFoot_ = static_cast<int>(other);
+                plantedNow = true;
+            }
+        }
+    }
     auto qualifies = [&](int k) {
         if (isSeat(k)) {
             return seatQualifies;
+        }
+        if (plantedFoot_ == k / 3 && !onSeat &&
+            r[static_cast<std::size_t>(k)].y() - footMinY[static_cast<std::size_t>(k / 3)] <=
+                options_.heightM) {
+            return true;
         }
         // A foot at rest takes the body on its own level when that is a step above the
         // lowest point, and keeps it there while it rests.
@@ -392,9 +438,11 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
             // than heightM) stands on its level.
             const double y = r[static_cast<std::size_t>(k)].y();
             double lowest = y;
-            for (const Vec3d& p : r) {
-                if (p.y() >= y - options_.heightM) {
-                    lowest = std::min(lowest, p.y());
+            for (std::size_t j = 0; j < r.size(); ++j) {
+                // A planted foot is its own support: the other, swinging up past it, is not.
+                const bool ownFoot = plantedFoot_ != k / 3 || static_cast<int>(j / 3) == k / 3;
+                if (ownFoot && r[j].y() >= y - options_.heightM) {
+                    lowest = std::min(lowest, r[j].y());
                 }
             }
             at.y() = anchor_.y() - lowest;
@@ -420,6 +468,17 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     if (seatQualifies && !isSeat(point_)) {
         best = kSeatPoint;
         bestSpeed = -1;
+    } else if (plantedNow) {
+        // The planted foot takes the body now: its least moving point near its sole.
+        best = -1;
+        bestSpeed = std::numeric_limits<double>::max();
+        for (int k = 3 * plantedFoot_; k < 3 * plantedFoot_ + 3; ++k) {
+            if (qualifies(k) && predictedSpeed(k) < bestSpeed) {
+                bestSpeed = predictedSpeed(k);
+                best = k;
+            }
+        }
+        bestSpeed = -1;
     }
     if (best != point_ &&
         (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
@@ -434,11 +493,20 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         // The new point's level: its height under the held point itself, not under the
         // lowest foot point (in a push-off the rigid foot's toe tip dips below the floor it
         // stands on, and would put a foot that is on the floor above it).
-        const double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
-                                           : anchor_.y() - relative(held).y() + relative(best).y();
+        double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
+                                     : anchor_.y() - relative(held).y() + relative(best).y();
+        if (plantedNow && !isSeat(held) && landedRiseM_[static_cast<std::size_t>(best / 3)]) {
+            // A tread's height: the held support's level (its lowest point's) and how far the
+            // planted foot's sole stood above the held foot's when it came to rest, both on
+            // their supports (by now the held foot has begun to lift, and the root with it).
+            height = anchor_.y() + *landedRiseM_[static_cast<std::size_t>(best / 3)];
+        }
         anchor_ = here + relative(best);
         if (!isSeat(best)) {
-            anchor_.y() = supportLevel(height, resting(best));
+            anchor_.y() = supportLevel(height, resting(best) || plantedFoot_ == best / 3);
+        }
+        if (plantedFoot_ >= 0 && (isSeat(best) || best / 3 != plantedFoot_)) {
+            plantedFoot_ = -1;  // the body left it
         }
     }
     // The anchored point slips when its foot, rolling off the floor, moves in the world:

@@ -24,6 +24,14 @@ struct ContactOptions {
     // this of (the floor, a tread, a step); a foot at rest further from every known level
     // starts a new one (m); any other point is taken to stand on the highest known level below.
     double levelSnapM = 0.10;
+    // A step up: the held foot's own sensor moving faster than swingMps (m/s; a swing, not a
+    // slip) while the other foot's, higher than the lowest point by more than heightM, moves
+    // slower than plantedMps: the other foot is planted on a tread and carries the body on a
+    // level of its own, until its sensor says it moves again. Its sensor need not be at rest
+    // for restingS: on a real stair a loaded foot hardly ever is (docs/skeleton.md, "Steps and
+    // stairs").
+    double swingMps = 0.5;
+    double plantedMps = 0.2;
     // The point that carries the body is the one that moves least in the world: each point's
     // world velocity is predicted from its velocity relative to the root (the Jacobian and the
     // joint rates) plus the root velocity, low-passed with this time constant (s) so that the
@@ -177,6 +185,10 @@ private:
     std::size_t levelCount_ = 1;
     double takeoffLevelM_ = 0;
     std::array<double, 2> stillForS_{};  // how long each foot's sensor has been still
+    int plantedFoot_ = -1;  // a foot planted above the other, by the feet's sensors
+    std::array<bool, 2> footSlow_{};  // each foot's sensor slower than plantedMps
+    // Each foot's sole above the held foot's when it came to rest (while it stays slow).
+    std::array<std::optional<double>, 2> landedRiseM_{};
     // The level a point taking over the body at heightM stands on (a foot at rest there or not).
     double supportLevel(double heightM, bool resting);
     int freeFallCount_ = 0;

@@ -259,6 +259,58 @@ TEST(RootTracker, SeatedTheSeatCarriesTheBodyWhileTheFeetLift) {
     EXPECT_TRUE(released);
 }
 
+TEST(RootTracker, AFootPlantedOnATreadCarriesTheBodyWhileTheOtherSwingsUp) {
+    // A stair: the left foot on a tread (the left leg bent 35 deg at the hip, 70 at the knee:
+    // its sole about 0.16 m above the right one's), the right foot on the floor carrying the
+    // body. The trailing right foot then swings up (its knee bending to 90 deg in 0.2 s), while
+    // the feet's sensors say the left one stands still and the right one moves at 1.2 m/s: the
+    // left foot takes the body on a level of its own, at its height when it came to rest, and
+    // the root no longer follows the lifting right foot down. Neither foot's sensor is still
+    // for the 0.1 s a foot at rest needs (a loaded foot on a real stair hardly ever is).
+    const Dimensions d = dims();
+    auto stair = [](double rightKneeDeg) {
+        Pose p;
+        p.qLocal[idx(S::LThigh)] = Quatd(Eigen::AngleAxisd(-35 * kDeg, Vec3d::UnitX()));
+        p.qLocal[idx(S::LCalf)] = Quatd(Eigen::AngleAxisd(70 * kDeg, Vec3d::UnitX()));
+        p.qLocal[idx(S::LHindfoot)] = Quatd(Eigen::AngleAxisd(-35 * kDeg, Vec3d::UnitX()));
+        p.qLocal[idx(S::RCalf)] = Quatd(Eigen::AngleAxisd(rightKneeDeg * kDeg, Vec3d::UnitX()));
+        return p;
+    };
+    for (const bool sensed : {true, false}) {
+        BodySolverOptions o;
+        if (!sensed) {
+            o.contact.swingMps = 1e9;  // as before: no foot is ever taken for swinging
+        }
+        BodySolver s(Skeleton(d), testing::kFullSuit, o);
+        BodyCalibration cal;
+        cal.mask = testing::kFullSuit;
+        s.setCalibration(cal);
+        FootSensorMotion feet;
+        feet.valid = {true, true};
+        for (int k = 0; k < 20; ++k) {
+            s.solve(frameOf(stair(0)), 0.01, Vec3d(0, 9.81, 0), &feet);
+        }
+        ASSERT_EQ(s.rootTracker().phase(), ContactPhase::RightStance);
+        const double rootY = s.pose().positionM[0].y();
+        const double tread =
+            pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y();
+        ASSERT_GT(tread, 0.14);
+        feet.velocityMps[1] = Vec3d(0, 1.0, 0.6);  // the right foot lifts off
+        for (int k = 1; k <= 20; ++k) {
+            s.solve(frameOf(stair(90.0 * k / 20)), 0.01, Vec3d(0, 9.81, 0), &feet);
+        }
+        const double sunk = rootY - s.pose().positionM[0].y();
+        if (sensed) {
+            EXPECT_EQ(s.rootTracker().phase(), ContactPhase::LeftStance);
+            EXPECT_LT(std::abs(sunk), 0.005);
+            EXPECT_NEAR(pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y(),
+                        tread, 0.005);
+        } else {
+            EXPECT_GT(sunk, 0.05);  // held on the lifting right foot
+        }
+    }
+}
+
 TEST(RootTracker, ABounceOnTheSeatIsNotAFlight) {
     // Seated with the feet off the floor (on a stool's rung), the pelvis accelerometer reads
     // free fall for a few frames: the body shifting on the seat. The seat still carries it:
