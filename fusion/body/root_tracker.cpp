@@ -404,7 +404,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
             const double sh = speed(held);
             const double so = speed(other);
             if (plantedFoot_ != static_cast<int>(other) && sh > kSwing && so >= 0 && so < kPlant &&
-                footMinY[other] - minY > options_.heightM) {
+                std::abs(footMinY[other] - footMinY[held]) > options_.heightM) {
                 plantedFoot_ = static_cast<int>(other);
                 plantedNow = true;
             }
@@ -495,15 +495,21 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         // stands on, and would put a foot that is on the floor above it).
         double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
                                      : anchor_.y() - relative(held).y() + relative(best).y();
-        if (plantedNow && !isSeat(held) && landedRiseM_[static_cast<std::size_t>(best / 3)]) {
-            // A tread's height: the held support's level (its lowest point's) and how far the
-            // planted foot's sole stood above the held foot's when it came to rest, both on
-            // their supports (by now the held foot has begun to lift, and the root with it).
-            height = anchor_.y() + *landedRiseM_[static_cast<std::size_t>(best / 3)];
+        // A foot that came to rest on another level (a tread above or below) while the held
+        // one carried the body: its level is the held support's (its lowest point's) and how far
+        // its sole stood above or below the held foot's then, both on their supports (by the
+        // hand-over the held foot has begun to lift, and the root with it).
+        const std::optional<double>& rise =
+            isSeat(best) ? std::optional<double>() : landedRiseM_[static_cast<std::size_t>(best / 3)];
+        const bool onOtherTread = !isSeat(held) && !isSeat(best) && best / 3 != held / 3 && rise &&
+                                  std::abs(*rise) > options_.heightM;
+        if (onOtherTread) {
+            height = anchor_.y() + *rise;
         }
         anchor_ = here + relative(best);
         if (!isSeat(best)) {
-            anchor_.y() = supportLevel(height, resting(best) || plantedFoot_ == best / 3);
+            anchor_.y() =
+                supportLevel(height, resting(best) || plantedFoot_ == best / 3 || onOtherTread);
         }
         if (plantedFoot_ >= 0 && (isSeat(best) || best / 3 != plantedFoot_)) {
             plantedFoot_ = -1;  // the body left it

@@ -29,7 +29,8 @@ struct ContactOptions {
     // slower than plantedMps: the other foot is planted on a tread and carries the body on a
     // level of its own, until its sensor says it moves again. Its sensor need not be at rest
     // for restingS: on a real stair a loaded foot hardly ever is (docs/skeleton.md, "Steps and
-    // stairs").
+    // stairs"). A foot whose sensor came to rest (below plantedMps) more than heightM above or
+    // below the held foot takes over, whichever rule hands it the body, on a level at that rise.
     double swingMps = 0.5;
     double plantedMps = 0.2;
     // The point that carries the body is the one that moves least in the world: each point's

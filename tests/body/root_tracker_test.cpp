@@ -279,7 +279,7 @@ TEST(RootTracker, AFootPlantedOnATreadCarriesTheBodyWhileTheOtherSwingsUp) {
     for (const bool sensed : {true, false}) {
         BodySolverOptions o;
         if (!sensed) {
-            o.contact.swingMps = 1e9;  // as before: no foot is ever taken for swinging
+            o.contact.plantedMps = 0;  // as before: no foot is ever taken for standing still
         }
         BodySolver s(Skeleton(d), testing::kFullSuit, o);
         BodyCalibration cal;
