@@ -442,7 +442,7 @@ bool BodyTracker::kneeHeadingApplies() const {
            (method == CalibrationMethod::TPose || method == CalibrationMethod::NPose);
 }
 
-void BodyTracker::turnCaptureHeading(double errorRad) {
+void BodyTracker::turnCaptureHeading(double errorRad, TrackerEvents& events) {
     // The capture heading was off by the error: psi + error, and every mounting
     // q_segment_sensor = q_W_segment(ref)^-1 q_ENU_W^-1 q_ENU_sensor turns with it.
     const ReferencePoseKind pose = calibration_.method == CalibrationMethod::NPose
@@ -461,6 +461,9 @@ void BodyTracker::turnCaptureHeading(double errorRad) {
         std::remainder(calibration_.headingRad + errorRad, 2 * std::numbers::pi);
     solver_.setCalibration(calibration_);
     rootVelocityValid_ = false;  // the aiding's low-passed velocity is in the old world
+    kneeHeadingDone_ = true;
+    events.kneeHeading = true;
+    events.kneeHeadingRad = errorRad;
 }
 
 std::optional<double> BodyTracker::kneeHeadingError() const {
@@ -495,10 +498,7 @@ void BodyTracker::addKneeSample(std::size_t sensor, TrackerEvents& events) {
     if (!error) {
         return;
     }
-    turnCaptureHeading(*error);
-    kneeHeadingDone_ = true;
-    events.kneeHeading = true;
-    events.kneeHeadingRad = *error;
+    turnCaptureHeading(*error, events);
 }
 
 Result<BodyCalibration> BodyTracker::computeCalibration(const CalibrationInput& in,
@@ -685,10 +685,7 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
     ++calibrations_;
     if (options_.knownHeadingErrorRad && calibrations_ == 1 && kneeHeadingApplies()) {
         // Offline: the error the knees showed over the whole take, from the calibration on.
-        turnCaptureHeading(*options_.knownHeadingErrorRad);
-        kneeHeadingDone_ = true;
-        events.kneeHeading = true;
-        events.kneeHeadingRad = *options_.knownHeadingErrorRad;
+        turnCaptureHeading(*options_.knownHeadingErrorRad, events);
     }
     rootVelocityValid_ = false;
     calibrated_ = true;

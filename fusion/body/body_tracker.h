@@ -16,8 +16,8 @@
 
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
-#include "fusion/body/knee_heading.h"
 #include "fusion/body/foot_inertial.h"
+#include "fusion/body/knee_heading.h"
 #include "hal/core/time.h"
 
 namespace caphub::body {
@@ -284,8 +284,9 @@ private:
     void addKneeSample(std::size_t sensor, TrackerEvents& events);
     // The calibration in use can be corrected from the knees (one pose, magnetic headings).
     bool kneeHeadingApplies() const;
-    // The capture heading turned by errorRad and every mounting with it.
-    void turnCaptureHeading(double errorRad);
+    // The capture heading turned by errorRad and every mounting with it, once per calibration
+    // (the events say so).
+    void turnCaptureHeading(double errorRad, TrackerEvents& events);
     // The calibration from its inputs (a heading reset done since, if any, added by the caller).
     Result<BodyCalibration> computeCalibration(const CalibrationInput& in, std::int64_t tNs) const;
     // The heading reset asked for, once t has reached its moment.

@@ -16,6 +16,7 @@
 #include <optional>
 
 #include "fusion/body/kinematics.h"
+#include "hal/core/angles.h"
 
 namespace caphub::body {
 
@@ -34,9 +35,9 @@ struct KneeHeadingOptions {
     double minPlanarity = 0.95;
     // The two knees must agree within this (rad); otherwise a strap of its own, not the capture
     // heading, turns one of them.
-    double maxDisagreementRad = 4.0 * 3.14159265358979 / 180;
+    double maxDisagreementRad = 4.0 * hal::kDegToRad;
     // A heading error beyond this (rad) is not a strap's mean: no answer.
-    double maxErrorRad = 10.0 * 3.14159265358979 / 180;
+    double maxErrorRad = 10.0 * hal::kDegToRad;
 };
 
 class KneeHeading {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "hal/core/angles.h"
 
@@ -284,8 +285,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         if (force && dtS > 0 && !isSeat(point_)) {
             // Across, no faster a change of velocity than the pelvis accelerometer measures
             // allows (ContactOptions::contactStepMps): the excess is the held point slipping.
-            const Vec3d predicted =
-                velocity_ + (*force - Vec3d(0, options_.gravityMps2, 0)) * dtS;
+            const Vec3d predicted = velocity_ + (*force - Vec3d(0, options_.gravityMps2, 0)) * dtS;
             Vec3d excess = (next - root_) / dtS - predicted;
             excess.y() = 0;
             const double size = excess.norm();
@@ -372,44 +372,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     auto resting = [&](int k) {
         return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
     };
-    // The feet's own sensors say which foot moves in the world: the held foot swinging while the
-    // other one, higher, stands still is a step up onto a tread (the trailing foot, below it and
-    // the lowest, leaves the floor). That foot is planted until it moves again.
-    const double kSwing = options_.swingMps;
-    const double kPlant = options_.plantedMps;
-    bool plantedNow = false;
-    if (footSensors != nullptr) {
-        auto speed = [&](std::size_t f) {
-            return footSensors->valid[f] ? footSensors->velocityMps[f].norm() : -1.0;
-        };
-        // Each foot's rise above the held foot as it comes to rest while the held one carries the
-        // body: a tread's height, before the held foot lifts.
-        for (std::size_t f = 0; f < 2; ++f) {
-            const double v = speed(f);
-            const bool slow = v >= 0 && v < kPlant;
-            if (slow && !footSlow_[f] && !isSeat(point_) && point_ >= 0 &&
-                static_cast<std::size_t>(point_ / 3) != f) {
-                landedRiseM_[f] = footMinY[f] - footMinY[1 - f];
-            } else if (!slow) {
-                landedRiseM_[f].reset();
-            }
-            footSlow_[f] = slow;
-        }
-        if (plantedFoot_ >= 0 && speed(static_cast<std::size_t>(plantedFoot_)) > kSwing) {
-            plantedFoot_ = -1;
-        }
-        if (!isSeat(point_) && point_ >= 0) {
-            const std::size_t held = static_cast<std::size_t>(point_ / 3);
-            const std::size_t other = 1 - held;
-            const double sh = speed(held);
-            const double so = speed(other);
-            if (plantedFoot_ != static_cast<int>(other) && sh > kSwing && so >= 0 && so < kPlant &&
-                std::abs(footMinY[other] - footMinY[held]) > options_.heightM) {
-                plantedFoot_ = static_cast<int>(other);
-                plantedNow = true;
-            }
-        }
-    }
+    const bool plantedNow = footSensors != nullptr && updatePlantedFoot(*footSensors, footMinY);
     auto qualifies = [&](int k) {
         if (isSeat(k)) {
             return seatQualifies;
@@ -450,18 +413,17 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         return at;
     };
     const Vec3d here = placeOn(point_);
-    int best = -1;
-    double bestSpeed = std::numeric_limits<double>::max();
-    for (int k = 0; k <= kSeatPoint; ++k) {
-        if (!qualifies(k)) {
-            continue;
+    // The qualifying point among [from, to] predicted to move least, and its speed.
+    auto leastMoving = [&](int from, int to) {
+        std::pair<int, double> least{-1, std::numeric_limits<double>::max()};
+        for (int k = from; k <= to; ++k) {
+            if (qualifies(k) && predictedSpeed(k) < least.second) {
+                least = {k, predictedSpeed(k)};
+            }
         }
-        const double v = predictedSpeed(k);
-        if (v < bestSpeed) {
-            bestSpeed = v;
-            best = k;
-        }
-    }
+        return least;
+    };
+    auto [best, bestSpeed] = leastMoving(0, kSeatPoint);
     // The body off its feet in a sitting posture is on the seat: the seat takes it at once,
     // whatever the feet do (one lifted to a rung moves less in the world than the seat
     // predicted from a root that the floor is pulling down with it).
@@ -470,14 +432,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         bestSpeed = -1;
     } else if (plantedNow) {
         // The planted foot takes the body now: its least moving point near its sole.
-        best = -1;
-        bestSpeed = std::numeric_limits<double>::max();
-        for (int k = 3 * plantedFoot_; k < 3 * plantedFoot_ + 3; ++k) {
-            if (qualifies(k) && predictedSpeed(k) < bestSpeed) {
-                bestSpeed = predictedSpeed(k);
-                best = k;
-            }
-        }
+        best = leastMoving(3 * plantedFoot_, 3 * plantedFoot_ + 2).first;
         bestSpeed = -1;
     }
     if (best != point_ &&
@@ -499,8 +454,9 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         // one carried the body: its level is the held support's (its lowest point's) and how far
         // its sole stood above or below the held foot's then, both on their supports (by the
         // hand-over the held foot has begun to lift, and the root with it).
-        const std::optional<double>& rise =
-            isSeat(best) ? std::optional<double>() : landedRiseM_[static_cast<std::size_t>(best / 3)];
+        const std::optional<double>& rise = isSeat(best)
+                                                ? std::optional<double>()
+                                                : landedRiseM_[static_cast<std::size_t>(best / 3)];
         const bool onOtherTread = !isSeat(held) && !isSeat(best) && best / 3 != held / 3 && rise &&
                                   std::abs(*rise) > options_.heightM;
         if (onOtherTread) {
@@ -562,6 +518,44 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
         return false;  // nothing to say (a pose that is not finite)
     }
     return distanceToHull(Vec2d(xcom.x(), xcom.z()), support, n) > options_.offFeetM;
+}
+
+bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,
+                                    const std::array<double, 2>& footMinY) {
+    auto speed = [&](std::size_t f) {
+        return footSensors.valid[f] ? footSensors.velocityMps[f].norm() : -1.0;
+    };
+    const bool onFoot = !isSeat(point_) && point_ >= 0;
+    // Each foot's rise above the held foot as it comes to rest while the held one carries the
+    // body: a tread's height, before the held foot lifts.
+    for (std::size_t f = 0; f < 2; ++f) {
+        const double v = speed(f);
+        const bool slow = v >= 0 && v < options_.plantedMps;
+        if (slow && !footSlow_[f] && onFoot && static_cast<std::size_t>(point_ / 3) != f) {
+            landedRiseM_[f] = footMinY[f] - footMinY[1 - f];
+        } else if (!slow) {
+            landedRiseM_[f].reset();
+        }
+        footSlow_[f] = slow;
+    }
+    if (plantedFoot_ >= 0 && speed(static_cast<std::size_t>(plantedFoot_)) > options_.swingMps) {
+        plantedFoot_ = -1;
+    }
+    if (!onFoot) {
+        return false;
+    }
+    // The held foot swinging while the other, on another level, stands still: a step onto a
+    // tread (the trailing foot leaves the one below).
+    const auto held = static_cast<std::size_t>(point_ / 3);
+    const std::size_t other = 1 - held;
+    const double standing = speed(other);
+    if (plantedFoot_ == static_cast<int>(other) || speed(held) <= options_.swingMps ||
+        standing < 0 || standing >= options_.plantedMps ||
+        std::abs(footMinY[other] - footMinY[held]) <= options_.heightM) {
+        return false;
+    }
+    plantedFoot_ = static_cast<int>(other);
+    return true;
 }
 
 double RootTracker::supportLevel(double heightM, bool resting) {

@@ -24,9 +24,9 @@ struct ContactOptions {
     // this of (the floor, a tread, a step); a foot at rest further from every known level
     // starts a new one (m); any other point is taken to stand on the highest known level below.
     double levelSnapM = 0.10;
-    // A step up: the held foot's own sensor moving faster than swingMps (m/s; a swing, not a
-    // slip) while the other foot's, higher than the lowest point by more than heightM, moves
-    // slower than plantedMps: the other foot is planted on a tread and carries the body on a
+    // A step onto a tread: the held foot's own sensor moving faster than swingMps (m/s; a
+    // swing, not a slip) while the other foot's, more than heightM above or below the held
+    // one, moves slower than plantedMps: the other foot is planted and carries the body on a
     // level of its own, until its sensor says it moves again. Its sensor need not be at rest
     // for restingS: on a real stair a loaded foot hardly ever is (docs/skeleton.md, "Steps and
     // stairs"). A foot whose sensor came to rest (below plantedMps) more than heightM above or
@@ -145,6 +145,13 @@ private:
     // them, com the centre of mass from the root and its velocity about the root.
     bool seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY, const Vec3d& com,
                 const Vec3d& comVelocityAboutRoot) const;
+    // The feet's sensors this frame (ContactOptions::swingMps, plantedMps): each foot's rise as
+    // it comes to rest, and whether the other foot is planted now; footMinY: each foot's lowest
+    // point relative to the root. True when a foot was planted in this frame.
+    bool updatePlantedFoot(const FootSensorMotion& footSensors,
+                           const std::array<double, 2>& footMinY);
+    // The level a point taking over the body at heightM stands on (a foot at rest there or not).
+    double supportLevel(double heightM, bool resting);
 
     ContactOptions options_;
     Vec3d root_ = Vec3d::Zero();
@@ -186,12 +193,10 @@ private:
     std::size_t levelCount_ = 1;
     double takeoffLevelM_ = 0;
     std::array<double, 2> stillForS_{};  // how long each foot's sensor has been still
-    int plantedFoot_ = -1;  // a foot planted above the other, by the feet's sensors
-    std::array<bool, 2> footSlow_{};  // each foot's sensor slower than plantedMps
+    int plantedFoot_ = -1;               // a foot planted on another level, by the feet's sensors
+    std::array<bool, 2> footSlow_{};     // each foot's sensor slower than plantedMps
     // Each foot's sole above the held foot's when it came to rest (while it stays slow).
     std::array<std::optional<double>, 2> landedRiseM_{};
-    // The level a point taking over the body at heightM stands on (a foot at rest there or not).
-    double supportLevel(double heightM, bool resting);
     int freeFallCount_ = 0;
     int stanceChanges_ = 0;
     bool started_ = false;

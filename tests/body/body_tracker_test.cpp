@@ -930,16 +930,15 @@ TEST(BodyTracker, RealigningDuringTheAverageTurnsWhatWasAveraged) {
     EXPECT_LT(worstMountingError(tracker.calibration(), suit), kTolRad);
 }
 
-
 // The capture heading from the knees (fusion/body/knee_heading.h). Every sensor turned by the
 // same 3 deg about its segment's long axis (a strap's turn about the vertical in the T-pose):
 // the calibration's capture heading, from the nominal mountings, is off by as much. Then the
 // legs walk in place (the thighs swinging 20 deg, the knees bending 0-60 deg at 1 Hz) for 3 s,
 // the sensors' rates from their orientations' change.
 struct KneeRun {
-    double headingRad = 0;        // the subject's true heading
-    double calibratedRad = 0;     // the calibration's capture heading
-    std::optional<double> knee;   // kneeHeadingError() at the end
+    double headingRad = 0;       // the subject's true heading
+    double calibratedRad = 0;    // the calibration's capture heading
+    std::optional<double> knee;  // kneeHeadingError() at the end
     int kneeEvents = 0;
     double eventRad = 0;
     double finalHeadingRad = 0;   // calibration().headingRad at the end
@@ -981,9 +980,9 @@ KneeRun walkOnTheKnees(BodyTrackerOptions o) {
             u.t = t;
             const Quatd q = f.qEnuSensor[static_cast<std::size_t>(idx(suit.sensors[i].segment))];
             const Eigen::AngleAxisd step(previous[i].conjugate() * q);
-            u.rateRadS = (k == 0 ? Vec3d::Zero()
-                                 : Vec3d(step.axis() * step.angle() / toSeconds(kSample)))
-                             .cast<float>();
+            u.rateRadS =
+                (k == 0 ? Vec3d::Zero() : Vec3d(step.axis() * step.angle() / toSeconds(kSample)))
+                    .cast<float>();
             previous[i] = q;
             u.qEnuSensor = q.cast<float>();
             u.specificForceMps2 = u.qEnuSensor.conjugate() * Eigen::Vector3f(0, 0, 9.81f);

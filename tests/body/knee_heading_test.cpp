@@ -23,8 +23,8 @@ void bend(KneeHeading& k, int knee, const Vec3d& axis, int samples, std::mt19937
     const Vec3d other = axis.unitOrthogonal();
     for (int i = 0; i < samples; ++i) {
         const double rate = 5 * std::sin(2 * std::numbers::pi * i / 100.0);
-        const Vec3d w = rate * axis + wobble(rng) * other +
-                        Vec3d(noise(rng), noise(rng), noise(rng));
+        const Vec3d w =
+            rate * axis + wobble(rng) * other + Vec3d(noise(rng), noise(rng), noise(rng));
         k.add(knee, w);
     }
 }

@@ -292,8 +292,7 @@ TEST(RootTracker, AFootPlantedOnATreadCarriesTheBodyWhileTheOtherSwingsUp) {
         }
         ASSERT_EQ(s.rootTracker().phase(), ContactPhase::RightStance);
         const double rootY = s.pose().positionM[0].y();
-        const double tread =
-            pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y();
+        const double tread = pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y();
         ASSERT_GT(tread, 0.14);
         feet.velocityMps[1] = Vec3d(0, 1.0, 0.6);  // the right foot lifts off
         for (int k = 1; k <= 20; ++k) {
@@ -303,8 +302,8 @@ TEST(RootTracker, AFootPlantedOnATreadCarriesTheBodyWhileTheOtherSwingsUp) {
         if (sensed) {
             EXPECT_EQ(s.rootTracker().phase(), ContactPhase::LeftStance);
             EXPECT_LT(std::abs(sunk), 0.005);
-            EXPECT_NEAR(pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y(),
-                        tread, 0.005);
+            EXPECT_NEAR(pointOnSegment(s.pose(), idx(S::LHindfoot), d.leftFootPointM[0]).y(), tread,
+                        0.005);
         } else {
             EXPECT_GT(sunk, 0.05);  // held on the lifting right foot
         }
