@@ -162,8 +162,8 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
                 FootInertial& f = footInertial_[k];
                 f.add(q.cast<double>(), u.specificForceMps2.cast<double>(),
                       u.rateRadS.cast<double>(), toSeconds(h.latestT - h.previousT));
-                footHistory_[k].push(
-                    FootSample{t, f.valid(), f.still(), f.velocityEnuMps(), f.rateEnuRadS()});
+                footHistory_[k].push(FootSample{t, f.valid(), f.known(), f.still(),
+                                                f.velocityEnuMps(), f.rateEnuRadS()});
             }
         }
     }
@@ -238,8 +238,9 @@ const TrackedPose& BodyTracker::solveAt(Timestamp t) {
             continue;
         }
         const std::optional<FootSample> f = footHistory_[k].at(t);
-        if (f && f->valid) {
-            feet.valid[k] = true;
+        if (f && f->known) {
+            feet.valid[k] = f->valid;
+            feet.known[k] = true;
             feet.still[k] = f->still;
             feet.velocityMps[k] = qWorldEnu * f->velocityEnuMps;
             feet.rateRadS[k] = qWorldEnu * f->rateEnuRadS;

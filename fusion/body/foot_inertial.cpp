@@ -59,7 +59,7 @@ std::optional<FootSample> FootStateHistory::at(Timestamp t) const {
             const FootSample& after = newest(k - 1);
             FootSample s = before;
             // A zero-velocity update at `after` is a step, kept on its side: not interpolated.
-            if (before.valid && after.valid && !after.still) {
+            if (before.known && after.known && !after.still) {
                 const double along = toSeconds(t - before.t) / toSeconds(after.t - before.t);
                 s.velocityEnuMps += (after.velocityEnuMps - before.velocityEnuMps) * along;
                 s.rateEnuRadS += (after.rateEnuRadS - before.rateEnuRadS) * along;

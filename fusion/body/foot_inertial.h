@@ -23,6 +23,11 @@ struct FootInertialOptions {
     // The velocity is trusted for this long after the latest still instant (s): a stance's roll
     // off the floor, not a swing (the accelerometer's errors grow with the square of the time).
     double maxSpanS = 0.6;
+    // Whether the foot moves or stands (faster than a swing, slower than a planted foot) is
+    // told from the velocity for this long after the latest still instant (s): a swing down a
+    // stair or a long stride is longer than maxSpanS, and to tell a swing from a foot at rest
+    // the velocity need only be right to a few tenths of a metre a second.
+    double maxKnownSpanS = 1.5;
     double gravityMps2 = 9.81;
 };
 
@@ -38,6 +43,8 @@ public:
 
     // Integrated from a still instant no longer than maxSpanS ago.
     bool valid() const { return started_ && sinceStillS_ <= options_.maxSpanS; }
+    // Integrated from a still instant no longer than maxKnownSpanS ago.
+    bool known() const { return started_ && sinceStillS_ <= options_.maxKnownSpanS; }
     bool still() const { return still_; }
     // The sensor's velocity (m/s) and rate (rad/s) in ENU at the latest sample: with them, the
     // velocity of any point of the rigid foot.
@@ -59,6 +66,7 @@ private:
 struct FootSample {
     Timestamp t{};
     bool valid = false;
+    bool known = false;
     bool still = false;
     Vec3d velocityEnuMps = Vec3d::Zero();
     Vec3d rateEnuRadS = Vec3d::Zero();

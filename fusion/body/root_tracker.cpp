@@ -149,7 +149,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     stillForS_ = {0, 0};
     plantedFoot_ = -1;
     footSlow_ = {false, false};
-    landedRiseM_ = {};
+    landedLevelM_ = {};
     velocity_.setZero();
     smoothVelocity_.setZero();
     fusedVelocity_.setZero();
@@ -369,10 +369,20 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     for (std::size_t k = 0; k < r.size(); ++k) {
         footMinY[k / 3] = std::min(footMinY[k / 3], r[k].y());
     }
+    // Each foot's sole, the lower of its heel and ball: what the foot carrying the body stands
+    // on its tread with. The rigid model's toe tip is left out: a loaded foot whose heel has
+    // lifted stands on its ball with its toes bent along the tread or hanging over its edge,
+    // where the rigid toe tip dips below the tread by centimetres (docs/skeleton.md, "Steps
+    // and stairs").
+    std::array<double, 2> soleY{};
+    for (std::size_t f = 0; f < 2; ++f) {
+        soleY[f] = std::min(r[3 * f].y(), r[3 * f + 1].y());
+    }
     auto resting = [&](int k) {
         return stillForS_[static_cast<std::size_t>(k / 3)] >= options_.restingS - 1e-9;
     };
-    const bool plantedNow = footSensors != nullptr && updatePlantedFoot(*footSensors, footMinY);
+    const bool plantedNow =
+        footSensors != nullptr && updatePlantedFoot(*footSensors, footMinY, soleY);
     auto qualifies = [&](int k) {
         if (isSeat(k)) {
             return seatQualifies;
@@ -450,22 +460,25 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         // stands on, and would put a foot that is on the floor above it).
         double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
                                      : anchor_.y() - relative(held).y() + relative(best).y();
-        // A foot that came to rest on another level (a tread above or below) while the held
-        // one carried the body: its level is the held support's (its lowest point's) and how far
-        // its sole stood above or below the held foot's then, both on their supports (by the
-        // hand-over the held foot has begun to lift, and the root with it).
-        const std::optional<double>& rise = isSeat(best)
-                                                ? std::optional<double>()
-                                                : landedRiseM_[static_cast<std::size_t>(best / 3)];
-        const bool onOtherTread = !isSeat(held) && !isSeat(best) && best / 3 != held / 3 && rise &&
-                                  std::abs(*rise) > options_.heightM;
+        // A foot that came to rest on another level (a tread above or below) while a foot
+        // carried the body: the level it was measured on then (by the hand-over the held foot
+        // has begun to lift, and the root with it).
+        const std::optional<double>& landed =
+            isSeat(best) ? std::optional<double>()
+                         : landedLevelM_[static_cast<std::size_t>(best / 3)];
+        const bool onOtherTread = !isSeat(held) && !isSeat(best) && best / 3 != held / 3 &&
+                                  landed && std::abs(*landed - anchor_.y()) > options_.heightM;
         if (onOtherTread) {
-            height = anchor_.y() + *rise;
+            height = *landed;
         }
         anchor_ = here + relative(best);
         if (!isSeat(best)) {
-            anchor_.y() =
-                supportLevel(height, resting(best) || plantedFoot_ == best / 3 || onOtherTread);
+            // Landing: the new point's foot, by its own sensor, is not swinging.
+            const auto f = static_cast<std::size_t>(best / 3);
+            const bool landing = footSensors != nullptr && footSensors->known[f] &&
+                                 footSensors->velocityMps[f].norm() <= options_.swingMps;
+            anchor_.y() = supportLevel(
+                height, resting(best) || plantedFoot_ == best / 3 || onOtherTread, landing);
         }
         if (plantedFoot_ >= 0 && (isSeat(best) || best / 3 != plantedFoot_)) {
             plantedFoot_ = -1;  // the body left it
@@ -521,20 +534,22 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
 }
 
 bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,
-                                    const std::array<double, 2>& footMinY) {
+                                    const std::array<double, 2>& footMinY,
+                                    const std::array<double, 2>& soleY) {
     auto speed = [&](std::size_t f) {
-        return footSensors.valid[f] ? footSensors.velocityMps[f].norm() : -1.0;
+        return footSensors.known[f] ? footSensors.velocityMps[f].norm() : -1.0;
     };
     const bool onFoot = !isSeat(point_) && point_ >= 0;
-    // Each foot's rise above the held foot as it comes to rest while the held one carries the
-    // body: a tread's height, before the held foot lifts.
+    // Each foot's level as it comes to rest while the other carries the body: the held foot's,
+    // and the rise from the held foot's sole to the resting foot's lowest point (it has just
+    // come down on it), a tread's height, before the held foot lifts.
     for (std::size_t f = 0; f < 2; ++f) {
         const double v = speed(f);
         const bool slow = v >= 0 && v < options_.plantedMps;
         if (slow && !footSlow_[f] && onFoot && static_cast<std::size_t>(point_ / 3) != f) {
-            landedRiseM_[f] = footMinY[f] - footMinY[1 - f];
+            landedLevelM_[f] = anchor_.y() + footMinY[f] - soleY[1 - f];
         } else if (!slow) {
-            landedRiseM_[f].reset();
+            landedLevelM_[f].reset();
         }
         footSlow_[f] = slow;
     }
@@ -558,9 +573,9 @@ bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,
     return true;
 }
 
-double RootTracker::supportLevel(double heightM, bool resting) {
+double RootTracker::supportLevel(double heightM, bool resting, bool landing) {
     std::size_t nearest = 0;
-    std::size_t below = 0;  // the floor when no other is below
+    std::size_t below = 0;  // the floor when no other is below (and is above: see below)
     for (std::size_t i = 0; i < levelCount_; ++i) {
         if (std::abs(levels_[i] - heightM) < std::abs(levels_[nearest] - heightM)) {
             nearest = i;
@@ -572,8 +587,14 @@ double RootTracker::supportLevel(double heightM, bool resting) {
     if (std::abs(levels_[nearest] - heightM) <= options_.levelSnapM) {
         return levels_[nearest];
     }
-    if (!resting) {
+    if (!resting && levels_[below] <= heightM) {
         return levels_[below];  // no evidence of a support where it is
+    }
+    // Below every known level (walking down from where the capture began): a foot landing
+    // there, by its own sensor, stands on a new level; without that evidence the lowest known
+    // one, never one above it.
+    if (!resting && !landing) {
+        return levels_[nearest];
     }
     // A new level; when they are all taken the oldest but the floor makes room.
     if (levelCount_ == kLevels) {

@@ -22,7 +22,9 @@ struct ContactOptions {
     double restingS = 0.1;
     // Where a foot point takes over the body, its height joins the support level it is within
     // this of (the floor, a tread, a step); a foot at rest further from every known level
-    // starts a new one (m); any other point is taken to stand on the highest known level below.
+    // starts a new one (m); any other point is taken to stand on the highest known level below,
+    // and below every known level (down a stair from where the capture began) on a new one when
+    // its foot's sensor says it is not swinging (slower than swingMps), else on the lowest.
     double levelSnapM = 0.10;
     // A step onto a tread: the held foot's own sensor moving faster than swingMps (m/s; a
     // swing, not a slip) while the other foot's, more than heightM above or below the held
@@ -95,10 +97,12 @@ struct FootState {
 Vec3d centreOfMassOffsetM(const Dimensions& d, const Pose& pose);
 
 // The feet's own sensors by dead reckoning (fusion/body/foot_inertial.h), left then right: where
-// each sits on its hindfoot (segment frame) and, when valid (integrated from a still instant not
-// long ago), its velocity and rate in the skeleton world frame.
+// each sits on its hindfoot (segment frame) and, when known (integrated from a still instant not
+// long ago: FootInertial::known), its velocity and rate in the skeleton world frame; valid when
+// recent enough to measure a slip by (FootInertial::valid).
 struct FootSensorMotion {
     std::array<bool, 2> valid{};
+    std::array<bool, 2> known{};
     std::array<bool, 2> still{};
     std::array<Vec3d, 2> velocityMps{Vec3d::Zero(), Vec3d::Zero()};
     std::array<Vec3d, 2> rateRadS{Vec3d::Zero(), Vec3d::Zero()};
@@ -145,13 +149,16 @@ private:
     // them, com the centre of mass from the root and its velocity about the root.
     bool seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY, const Vec3d& com,
                 const Vec3d& comVelocityAboutRoot) const;
-    // The feet's sensors this frame (ContactOptions::swingMps, plantedMps): each foot's rise as
+    // The feet's sensors this frame (ContactOptions::swingMps, plantedMps): each foot's level as
     // it comes to rest, and whether the other foot is planted now; footMinY: each foot's lowest
-    // point relative to the root. True when a foot was planted in this frame.
+    // point relative to the root, soleY: the lower of its heel and ball. True when a foot was
+    // planted in this frame.
     bool updatePlantedFoot(const FootSensorMotion& footSensors,
-                           const std::array<double, 2>& footMinY);
-    // The level a point taking over the body at heightM stands on (a foot at rest there or not).
-    double supportLevel(double heightM, bool resting);
+                           const std::array<double, 2>& footMinY,
+                           const std::array<double, 2>& soleY);
+    // The level a point taking over the body at heightM stands on: resting, its foot at rest
+    // there; landing, its foot's sensor says it is not swinging.
+    double supportLevel(double heightM, bool resting, bool landing);
 
     ContactOptions options_;
     Vec3d root_ = Vec3d::Zero();
@@ -195,8 +202,8 @@ private:
     std::array<double, 2> stillForS_{};  // how long each foot's sensor has been still
     int plantedFoot_ = -1;               // a foot planted on another level, by the feet's sensors
     std::array<bool, 2> footSlow_{};     // each foot's sensor slower than plantedMps
-    // Each foot's sole above the held foot's when it came to rest (while it stays slow).
-    std::array<std::optional<double>, 2> landedRiseM_{};
+    // Each foot's level when it came to rest (while it stays slow).
+    std::array<std::optional<double>, 2> landedLevelM_{};
     int freeFallCount_ = 0;
     int stanceChanges_ = 0;
     bool started_ = false;

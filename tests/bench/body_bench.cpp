@@ -70,6 +70,7 @@ void BM_FullBodySolve(benchmark::State& state) {
     // frame.
     FootSensorMotion feet;
     feet.valid = {true, true};
+    feet.known = feet.valid;
     feet.velocityMps = {Vec3d(0.02, 0.01, 0.05), Vec3d(0.01, 0.0, 0.04)};
     feet.rateRadS = {Vec3d(0.5, 2.0, 0.1), Vec3d(-0.3, 1.5, 0.2)};
     feet.onFootM = {Vec3d(0.0, 0.03, 0.06), Vec3d(0.0, 0.03, 0.06)};

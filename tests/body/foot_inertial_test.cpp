@@ -88,12 +88,30 @@ TEST(FootInertial, AFootLongOffTheFloorIsNotTrusted) {
     EXPECT_TRUE(f.valid());
 }
 
+TEST(FootInertial, ASwingIsToldForLongerThanASlipIsMeasured) {
+    // A swing down a stair outlasts the span a slip is integrated over; whether the foot swings
+    // or stands is still told from its velocity, for maxKnownSpanS.
+    FootInertialOptions o;
+    ASSERT_GT(o.maxKnownSpanS, o.maxSpanS);
+    FootInertial f(o);
+    holdStill(f, 5);
+    move(f, Vec3d(0, 1, 0), static_cast<int>(o.maxSpanS / kDt) + 3);
+    EXPECT_FALSE(f.valid());
+    EXPECT_TRUE(f.known());
+    move(f, Vec3d(0, 1, 0), static_cast<int>((o.maxKnownSpanS - o.maxSpanS) / kDt));
+    EXPECT_FALSE(f.known());
+    holdStill(f, 2);
+    EXPECT_TRUE(f.known());
+    EXPECT_TRUE(f.valid());
+}
+
 TEST(FootInertial, AResetForgetsTheMotion) {
     FootInertial f;
     holdStill(f, 5);
     move(f, Vec3d(1, 0, 0), 5);
     f.reset();
     EXPECT_FALSE(f.valid());
+    EXPECT_FALSE(f.known());
     EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
 }
 
@@ -101,6 +119,7 @@ FootSample stateAt(int ms, double vx, bool still = false) {
     FootSample s;
     s.t = Timestamp{std::chrono::milliseconds(ms)};
     s.valid = true;
+    s.known = true;
     s.still = still;
     s.velocityEnuMps = Vec3d(vx, 0, 0);
     s.rateEnuRadS = Vec3d(0, 0, 2 * vx);

@@ -161,6 +161,7 @@ TEST(RootTracker, APlantedFootThatSlipsCarriesTheRootWithIt) {
         BodySolver s = makeSolver(d);
         FootSensorMotion feet;
         feet.valid = {valid, false};
+        feet.known = feet.valid;
         feet.still = {still, false};
         feet.velocityMps[0] = velocity;
         feet.rateRadS[0] = rate;
@@ -287,6 +288,7 @@ TEST(RootTracker, AFootPlantedOnATreadCarriesTheBodyWhileTheOtherSwingsUp) {
         s.setCalibration(cal);
         FootSensorMotion feet;
         feet.valid = {true, true};
+        feet.known = feet.valid;
         for (int k = 0; k < 20; ++k) {
             s.solve(frameOf(stair(0)), 0.01, Vec3d(0, 9.81, 0), &feet);
         }
@@ -487,6 +489,7 @@ TEST(RootTracker, InFlightTheFeetSensorsCarryTheRootAcross) {
                     &feet);
         }
         feet.valid = {valid, valid};
+        feet.known = feet.valid;
         feet.velocityMps = {feetVelocity, feetVelocity};
         std::vector<Vec3d> sensorPath;  // the left foot's sensor in the world, across
         std::vector<Vec3d> rootPath;
