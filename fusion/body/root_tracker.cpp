@@ -13,6 +13,11 @@ namespace {
 
 using S = Segment;
 
+// Foot f's speed in the world by its own sensor, or -1 when its dead reckoning is not known.
+double footSpeed(const FootSensorMotion& feet, std::size_t f) {
+    return feet.known[f] ? feet.velocityMps[f].norm() : -1.0;
+}
+
 // Where foot f's sensor is on a pose (relative to the root while the pose's root is at the
 // origin).
 Vec3d footSensorOnPose(const Pose& pose, const FootSensorMotion& feet, std::size_t f) {
@@ -474,9 +479,10 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         anchor_ = here + relative(best);
         if (!isSeat(best)) {
             // Landing: the new point's foot, by its own sensor, is not swinging.
-            const auto f = static_cast<std::size_t>(best / 3);
-            const bool landing = footSensors != nullptr && footSensors->known[f] &&
-                                 footSensors->velocityMps[f].norm() <= options_.swingMps;
+            const double v = footSensors != nullptr
+                                 ? footSpeed(*footSensors, static_cast<std::size_t>(best / 3))
+                                 : -1.0;
+            const bool landing = v >= 0 && v <= options_.swingMps;
             anchor_.y() = supportLevel(
                 height, resting(best) || plantedFoot_ == best / 3 || onOtherTread, landing);
         }
@@ -536,9 +542,7 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
 bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,
                                     const std::array<double, 2>& footMinY,
                                     const std::array<double, 2>& soleY) {
-    auto speed = [&](std::size_t f) {
-        return footSensors.known[f] ? footSensors.velocityMps[f].norm() : -1.0;
-    };
+    auto speed = [&](std::size_t f) { return footSpeed(footSensors, f); };
     const bool onFoot = !isSeat(point_) && point_ >= 0;
     // Each foot's level as it comes to rest while the other carries the body: the held foot's,
     // and the rise from the held foot's sole to the resting foot's lowest point (it has just
