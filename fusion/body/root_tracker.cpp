@@ -495,8 +495,9 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     // is the sensor's plus the rate crossed with the lever from the sensor to the point).
     const int foot = point_ < 3 ? 0 : 1;
     const auto uf = static_cast<std::size_t>(foot);
-    if (!isSeat(point_) && footSensors != nullptr && footSensors->valid[uf] &&
-        !footSensors->still[uf] && dtS > 0) {
+    if (!isSeat(point_) && footSensors != nullptr &&
+        (footSensors->valid[uf] || slidingLate(*footSensors, uf)) && !footSensors->still[uf] &&
+        dtS > 0) {
         const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
         const Vec3d slip =
             footSensors->velocityMps[uf] +
@@ -537,6 +538,13 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
         return false;  // nothing to say (a pose that is not finite)
     }
     return distanceToHull(Vec2d(xcom.x(), xcom.z()), support, n) > options_.offFeetM;
+}
+
+bool RootTracker::slidingLate(const FootSensorMotion& footSensors, std::size_t f) const {
+    const Vec3d& v = footSensors.velocityMps[f];
+    return footSensors.known[f] && std::hypot(v.x(), v.z()) > options_.swingMps &&
+           std::abs(v.y()) < options_.slideVerticalMps &&
+           std::hypot(smoothVelocity_.x(), smoothVelocity_.z()) < options_.slideBodyMps;
 }
 
 bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,

@@ -80,6 +80,16 @@ struct ContactOptions {
     // turning and sitting at 30-100 poses a second): docs/skeleton.md, "Slips the pelvis did
     // not feel".
     double contactStepMps = 0.3;
+    // A held foot sliding late: its dead reckoning measures a slip for FootInertialOptions::
+    // maxSpanS after a still instant; beyond it, while it is still known (maxKnownSpanS), the
+    // held point follows it too when the foot clearly slides (faster than swingMps across),
+    // along the floor (its vertical velocity within slideVerticalMps of zero: a foot on the
+    // floor does not move up or down, so a dead reckoning that says so has gone wrong) and the
+    // body moves slower across than slideBodyMps (a turn or a shuffle on the spot: no stride's
+    // impacts in the integration). A foot turned on the floor in a pivot slides at about
+    // 1 m/s (docs/skeleton.md, "A foot sliding in a turn").
+    double slideVerticalMps = 0.3;
+    double slideBodyMps = 0.5;
     double gravityMps2 = 9.81;
 };
 
@@ -149,6 +159,9 @@ private:
     // them, com the centre of mass from the root and its velocity about the root.
     bool seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY, const Vec3d& com,
                 const Vec3d& comVelocityAboutRoot) const;
+    // Foot f, held, slides beyond its dead reckoning's slip span (ContactOptions::
+    // slideVerticalMps, slideBodyMps).
+    bool slidingLate(const FootSensorMotion& footSensors, std::size_t f) const;
     // The feet's sensors this frame (ContactOptions::swingMps, plantedMps): each foot's level as
     // it comes to rest, and whether the other foot is planted now; footMinY: each foot's lowest
     // point relative to the root, soleY: the lower of its heel and ball. True when a foot was

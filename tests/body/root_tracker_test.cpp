@@ -191,6 +191,38 @@ TEST(RootTracker, APlantedFootThatSlipsCarriesTheRootWithIt) {
     EXPECT_LT(run(false, false).norm(), 1e-12);
 }
 
+TEST(RootTracker, AFootSlidingAfterItsSlipSpanCarriesTheRootOnlyAlongTheFloorAndFast) {
+    // Standing, the left heel anchored, its foot's dead reckoning known but past the slip's
+    // span (valid false): a turn on the spot whose pivot foot slides late. Sliding across at
+    // 1 m/s along the floor, the heel moves with it (3 frames of 0.01 s: 3 cm); not when the
+    // dead reckoning says the foot also moves up (its error shows), not at a speed its error
+    // could have (below swingMps), not when it is no longer known.
+    const Dimensions d = dims();
+    auto run = [&](bool known, const Vec3d& velocity) {
+        BodySolver s = makeSolver(d);
+        FootSensorMotion feet;
+        feet.valid = {false, false};
+        feet.known = {known, false};
+        feet.still = {false, false};
+        feet.onFootM[0] = Vec3d(0.0, 0.03, 0.06);
+        s.solve(frameOf(Pose{}), 0.01);
+        const Vec3d start = s.pose().positionM[0];
+        EXPECT_EQ(s.rootTracker().contactPoint(), 0);  // the left heel
+        feet.velocityMps[0] = velocity;
+        for (int k = 0; k < 3; ++k) {
+            s.solve(frameOf(Pose{}), 0.01, std::nullopt, &feet);
+        }
+        return Vec3d(s.pose().positionM[0] - start);
+    };
+    const Vec3d moved = run(true, Vec3d(0.0, 0.0, 1.0));
+    EXPECT_NEAR(moved.z(), 0.03, 1e-9);
+    EXPECT_NEAR(moved.x(), 0.0, 1e-12);
+    EXPECT_NEAR(moved.y(), 0.0, 1e-12);
+    EXPECT_LT(run(true, Vec3d(0.0, 0.5, 1.0)).norm(), 1e-12);
+    EXPECT_LT(run(true, Vec3d(0.0, 0.0, 0.4)).norm(), 1e-12);
+    EXPECT_LT(run(false, Vec3d(0.0, 0.0, 1.0)).norm(), 1e-12);
+}
+
 // Sitting: thighs forward (hips -90 deg), shanks at kneeDeg from the thighs, the feet flat
 // with the shanks vertical; the trunk upright.
 Pose sitPose(double kneeDeg) {
