@@ -233,6 +233,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     clipOptions.profile = o.profile;
     clipOptions.seed = o.seed;
     clipOptions.strapErrorDeg = o.strapDeg;
+    clipOptions.chipDelayS = o.chipDelayS;
     clipOptions.tposeHoldS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
     if (o.calibrate) {
         clipOptions.leadInPose = body::referencePose(*o.calibrate);  // the N-pose for npose

@@ -41,7 +41,8 @@ struct EvaluateOptions {
     std::filesystem::path map;  // empty: detect a built-in joint map
     board::sim::ErrorProfile profile = board::sim::ErrorProfile::Typical;
     std::uint64_t seed = 1;
-    double strapDeg = 10;  // the sensors' strapping error scale (board/sim/virtual_suit.h)
+    double strapDeg = 10;   // the sensors' strapping error scale (board/sim/virtual_suit.h)
+    double chipDelayS = 0;  // board::sim::ClipOptions::chipDelayS
     // The body calibration in the lead-in's T-pose; none: the board's nominal mountings.
     std::optional<body::ReferencePoseKind> calibrate = body::ReferencePoseKind::T;
     FusionStage::Calibrations sensorCalibrations;  // per board sensor; may be empty

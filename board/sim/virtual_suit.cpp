@@ -156,11 +156,12 @@ class TrajectoryImuSource final : public hs::PhysicalSource {
 public:
     TrajectoryImuSource(std::shared_ptr<const SegmentTrajectory> trajectory, const Environment& env,
                         const SensorPlacement& placement, const ImuErrorSpec& spec,
-                        std::uint64_t seed, const SensorConfig& sensor, Timestamp start)
+                        std::uint64_t seed, const SensorConfig& sensor, Timestamp start,
+                        Duration delay = Duration::zero())
         : trajectory_(std::move(trajectory)),
           imu_(*trajectory_, env, placement, spec, seed, sensor.achievedOdrHz,
                sensor.magOdrHz > 0 ? sensor.magOdrHz : sensor.achievedOdrHz),
-          start_(start) {}
+          start_(start + delay) {}
 
     hs::PhysicalInput at(Timestamp t) override {
         const std::int64_t tNs = std::max<std::int64_t>(0, toNs(t - start_));
@@ -259,6 +260,7 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     const ErrorProfile profile = options.profile;
     const std::uint64_t seed = options.seed;
     const double strapDeg = options.strapErrorDeg;
+    const Duration delay = durationFromSeconds(options.chipDelayS);
     suit.placement = [seed, strapDeg](const SensorConfig& sensor, int index) {
         SensorPlacement placement;
         placement.segment = sensor.segment;
@@ -266,7 +268,7 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
         placement.leverArmM = sensor.positionM;
         return placement;
     };
-    suit.sources = [motionPtr, env, profile, seed, start, placementOf = suit.placement](
+    suit.sources = [motionPtr, env, profile, seed, start, delay, placementOf = suit.placement](
                        const SensorConfig& sensor,
                        int index) -> std::unique_ptr<hs::PhysicalSource> {
         auto spec = errorSpec(sensor.chip->name, profile);
@@ -275,7 +277,7 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
         }
         const SensorPlacement placement = placementOf(sensor, index);
         return std::make_unique<TrajectoryImuSource>(motionPtr, env, placement, *spec,
-                                                     partSeed(seed, index), sensor, start);
+                                                     partSeed(seed, index), sensor, start, delay);
     };
     return suit;
 }

@@ -50,6 +50,11 @@ struct ClipOptions {
     // off what the wearer intended (docs/virtual-suit.md); 0 puts every sensor exactly at its
     // nominal mounting. Independent of the error profile: it is the fit of the suit, not the chip.
     double strapErrorDeg = 10;
+    // Each sensor reads the motion this long ago (s): the output delay of a chip's digital
+    // low-pass, which the chip models do not have (0: none, as the register models; the
+    // ICM-20948 at the driver's 23.9 Hz setting for 100 Hz delays by several milliseconds,
+    // docs/virtual-suit.md). The same for gyroscope, accelerometer and magnetometer.
+    double chipDelayS = 0;
     // Seconds the subject first stands in the T-pose (for a body calibration), before moving
     // into the clip over tposeBlendS (board/sim/lead_in.h); 0: the clip starts at once.
     double tposeHoldS = 0;

@@ -183,6 +183,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.map = c.suit.map;
     o.seed = c.suit.seed;
     o.strapDeg = c.suit.strapDeg;
+    o.chipDelayS = c.suit.chipDelayMs * 1e-3;
     o.poseRateHz = c.poseRateHz;
     o.aidFilters = !c.noBodyAiding;
     o.footInertial = !c.noFootInertial;

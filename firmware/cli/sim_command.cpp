@@ -153,6 +153,7 @@ int sim(const SimOptions& o) {
     clipOptions.profile = *profile;
     clipOptions.seed = o.suit.seed;
     clipOptions.strapErrorDeg = o.suit.strapDeg;
+    clipOptions.chipDelayS = o.suit.chipDelayMs * 1e-3;
     if (clipOptions.bvh.empty()) {
         fmt::print(stderr, "caphub sim: no motion: give --bvh FILE\n");
         return kExitUsage;

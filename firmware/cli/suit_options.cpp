@@ -15,6 +15,11 @@ void addSuitOptions(CLI::App& cmd, SuitCliOptions& o) {
                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
+    cmd.add_option("--chip-delay-ms", o.chipDelayMs,
+                   "Delay every virtual sensor's signals by this (ms): a chip's digital low-pass, "
+                   "which the virtual chips do not model (docs/virtual-suit.md)")
+        ->check(CLI::Range(0.0, 100.0))
+        ->capture_default_str();
 }
 
 std::optional<board::sim::ErrorProfile> suitProfile(const SuitCliOptions& o,

@@ -1,5 +1,5 @@
 // The options of the commands that play a clip on a virtual suit (sim, evaluate): the board, the
-// joint map, the sensor error profile, the seed and the strapping error.
+// joint map, the sensor error profile, the seed, the strapping error and the chips' output delay.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +19,7 @@ struct SuitCliOptions {
     std::string profile = "typical";
     std::uint64_t seed = 1;
     double strapDeg = 10;
+    double chipDelayMs = 0;
 };
 
 void addSuitOptions(CLI::App& cmd, SuitCliOptions& o);

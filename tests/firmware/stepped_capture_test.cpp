@@ -4,6 +4,7 @@
 #include "firmware/runtime/stepped_capture.h"
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <vector>
@@ -29,13 +30,15 @@ struct WalkRun {
     board::SuitHardware suit;
     std::vector<firmware::SensorSample> samples;
 
-    WalkRun(const char* boardFile, bs::ErrorProfile profile, std::uint64_t seed) {
+    WalkRun(const char* boardFile, bs::ErrorProfile profile, std::uint64_t seed,
+            double chipDelayS = 0) {
         auto loaded = board::loadBoardFile(kSource / "board" / boardFile);
         board = *loaded.board;
         bs::ClipOptions o;
         o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
         o.profile = profile;
         o.seed = seed;
+        o.chipDelayS = chipDelayS;
         auto c = bs::clipSources(o, start);
         clip = std::move(*c);
         auto hw = bs::buildVirtualSuit(board, clock, clip.sources);
@@ -54,6 +57,22 @@ constexpr double kGyroLsbRadS = 2000.0 / 32768.0 * hal::kPi / 180.0;
 constexpr double kAccelLsbMps2 = 16.0 * hal::kStandardGravity / 32768.0;
 constexpr double kMagLsbUt = 0.15;
 
+// A sample's gyroscope and accelerometer within half an LSB of the signals (rounding to the
+// nearest count, plus float rounding of the SI value).
+::testing::AssertionResult readsWithinHalfAnLsb(const firmware::SensorSample& s,
+                                                const bs::ImuSignals& truth) {
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(s.sample.gyrRadps[a] - truth.gyroRadS[a]) > 0.5 * kGyroLsbRadS * 1.001 ||
+            std::abs(s.sample.accMps2[a] - truth.accelMps2[a]) > 0.5 * kAccelLsbMps2 * 1.001) {
+            return ::testing::AssertionFailure()
+                   << "sensor " << s.sensor << " axis " << a << ": gyro " << s.sample.gyrRadps[a]
+                   << " against " << truth.gyroRadS[a] << ", accel " << s.sample.accMps2[a]
+                   << " against " << truth.accelMps2[a];
+        }
+    }
+    return ::testing::AssertionSuccess();
+}
+
 TEST(SteppedCapture, IdealSuitReadsThePhysicalTruthWithinHalfAnLsb) {
     WalkRun r("sim-suit.toml", bs::ErrorProfile::Ideal, 3);
     r.run(3s);
@@ -68,13 +87,7 @@ TEST(SteppedCapture, IdealSuitReadsThePhysicalTruthWithinHalfAnLsb) {
         const auto& p = placement[static_cast<std::size_t>(s.sensor)];
         r.clip.motion->evaluate(p.segment, toNs(s.sample.t - r.start), seg);
         const bs::ImuSignals truth = bs::idealSignals(seg, p, r.clip.environment);
-        // Rounding to the nearest count: half an LSB, plus float rounding of the SI value.
-        for (int a = 0; a < 3; ++a) {
-            ASSERT_NEAR(s.sample.gyrRadps[a], truth.gyroRadS[a], 0.5 * kGyroLsbRadS * 1.001)
-                << "sensor " << s.sensor << " axis " << a;
-            ASSERT_NEAR(s.sample.accMps2[a], truth.accelMps2[a], 0.5 * kAccelLsbMps2 * 1.001)
-                << "sensor " << s.sensor << " axis " << a;
-        }
+        ASSERT_TRUE(readsWithinHalfAnLsb(s, truth));
         // The magnetometer samples at its own instants (100 Hz continuous mode, read with the
         // next accel/gyro sample): it is checked against the field at the sample's instant within
         // what the field changes in one of its periods at walking rotation rates (< 6 uT).
@@ -91,6 +104,33 @@ TEST(SteppedCapture, IdealSuitReadsThePhysicalTruthWithinHalfAnLsb) {
         EXPECT_LE(n, 300) << "sensor " << sensor;
     }
     EXPECT_GT(magReadings, 17 * 200);
+}
+
+TEST(SteppedCapture, ADelayedChipReadsTheMotionThatLongBeforeItsSample) {
+    // --chip-delay-ms: each reading is the truth 8 ms before the sample's time (within half an
+    // LSB), which at walking rates is more than an LSB off the truth at the sample's time.
+    constexpr double kDelayS = 0.008;
+    WalkRun r("sim-upper10.toml", bs::ErrorProfile::Ideal, 3, kDelayS);
+    r.run(2s);
+    ASSERT_GT(r.samples.size(), 800u);  // 10 sensors, 2 s at 100 Hz less the start-up
+    int offNow = 0;
+    bs::SegmentState then;
+    bs::SegmentState now;
+    for (const auto& s : r.samples) {
+        const bs::SensorPlacement p =
+            r.clip.placement(r.board.sensors[static_cast<std::size_t>(s.sensor)], s.sensor);
+        const std::int64_t tNs = toNs(s.sample.t - r.start);
+        r.clip.motion->evaluate(p.segment, tNs - static_cast<std::int64_t>(kDelayS * 1e9), then);
+        r.clip.motion->evaluate(p.segment, tNs, now);
+        const bs::ImuSignals delayed = bs::idealSignals(then, p, r.clip.environment);
+        const bs::ImuSignals current = bs::idealSignals(now, p, r.clip.environment);
+        ASSERT_TRUE(readsWithinHalfAnLsb(s, delayed));
+        if ((s.sample.gyrRadps.cast<double>() - current.gyroRadS).cwiseAbs().maxCoeff() >
+            2 * kGyroLsbRadS) {
+            ++offNow;
+        }
+    }
+    EXPECT_GT(offNow, static_cast<int>(r.samples.size()) / 2);
 }
 
 TEST(SteppedCapture, SameSeedGivesTheSameSamplesAndAnotherSeedDoesNot) {
