@@ -755,8 +755,9 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
             } else {
                 s.magOdrHz = *v;
             }
-        } else if (s.achievedOdrHz > 0) {
-            // Default: the fastest magnetometer rate up to the sample rate, at most 100 Hz.
+        } else if (s.achievedOdrHz > 0 && !rates.empty()) {
+            // Default: the fastest magnetometer rate up to the sample rate, at most 100 Hz. A
+            // chip without a list of its own (imported samples) reads it with every sample.
             const double cap = std::min(s.achievedOdrHz, 100.0);
             s.magOdrHz = rates.front();
             for (double r : rates) {

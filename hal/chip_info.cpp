@@ -44,7 +44,15 @@ double lsmNearestOdr(double hz) {
     return best;
 }
 
-constexpr std::array<ChipInfo, 2> kChips = {{
+// Samples another system recorded (caphub import): whatever rate its file says.
+double importedOdr(double hz) {
+    return std::clamp(hz, 1.0, 10000.0);
+}
+
+constexpr std::array<double, 5> kImportedAccelG = {2, 4, 8, 16, 32};
+constexpr std::array<double, 6> kImportedGyroDps = {250, 500, 1000, 2000, 4000, 8000};
+
+constexpr std::array<ChipInfo, 3> kChips = {{
     {
         "icm20948",
         "TDK InvenSense ICM-20948 9-axis (accel, gyro, AK09916 magnetometer read through the "
@@ -80,6 +88,23 @@ constexpr std::array<ChipInfo, 2> kChips = {{
         {1, 1},   // STATUS_REG (0x1E), XLDA/GDA
         lsmNearestOdr,
         "12.5, 26, 52, 104, 208, 416, 833, 1666, 3332 or 6664 Hz",
+    },
+    {
+        "imported",
+        "Samples recorded by another system and imported (caphub import): no hardware to drive; "
+        "its magnetometer read with every sample",
+        kIcmAddresses,
+        {},
+        kImportedAccelG,
+        kImportedGyroDps,
+        {},
+        400e3,
+        10e6,
+        {1, 23},
+        {0, 0},
+        {1, 1},
+        importedOdr,
+        "any rate from 1 to 10000 Hz",
     },
 }};
 

@@ -1,10 +1,14 @@
 #include "render/image.h"
 
+#include <cerrno>
 #include <cstdio>
 #include <memory>
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <png.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace caphub::render {
 
@@ -18,9 +22,27 @@ using File = std::unique_ptr<std::FILE, FileCloser>;
 }  // namespace
 
 Result<void> writePng(const Image& image, const std::filesystem::path& path) {
-    File f(std::fopen(path.c_str(), "wb"));
+    // A regular file only: a symbolic link is not followed (it would write wherever it points),
+    // and neither a FIFO (its open would wait for a reader for ever) nor a device is written.
+    const int fd = ::open(path.c_str(),
+                          O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC, 0644);
+    if (fd < 0) {
+        const int err = errno;
+        return errnoError(-err, fmt::format("write '{}'{}", path.string(),
+                                            err == ELOOP   ? " (a symbolic link: not followed)"
+                                            : err == ENXIO ? " (a FIFO: not written)"
+                                                           : ""));
+    }
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd);
+        return Error{EINVAL, fmt::format("write '{}': not a regular file", path.string())};
+    }
+    File f(::fdopen(fd, "wb"));
     if (!f) {
-        return errnoError(-errno, fmt::format("write '{}'", path.string()));
+        const int err = errno;
+        ::close(fd);
+        return errnoError(-err, fmt::format("write '{}'", path.string()));
     }
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
     png_infop info = png ? png_create_info_struct(png) : nullptr;

@@ -17,6 +17,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/sensor_calibration_steps.h"
 #include "fusion/calibration/accel_six_position.h"
@@ -356,7 +357,7 @@ void addCalibrateCommand(CLI::App& app, int& exitCode) {
         sub->add_option("-f,--file", o->file, "Calibration file to update (created when missing)")
             ->capture_default_str();
         sub->add_option("-d,--duration", o->durationS, "Seconds to measure (0: the default)")
-            ->check(CLI::NonNegativeNumber);
+            ->check(finiteNonNegative());
         sub->add_option("--profile", o->profile,
                         "Virtual suit: sensor errors: ideal, typical, harsh")
             ->capture_default_str();

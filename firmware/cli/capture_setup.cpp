@@ -7,6 +7,7 @@
 
 #include "firmware/calibration_file.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "hal/core/log.h"
 #include "render/skin.h"
 
@@ -30,7 +31,7 @@ extern "C" void onStopSignal(int) {
 
 void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o) {
     cmd.add_option("--speed", o.speed, "Virtual suit only: simulated seconds per real second")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd.add_option("--bvh", o.bvh,
                    "Virtual suit: the motion (BVH); default: the shipped walking clip");

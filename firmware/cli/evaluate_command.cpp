@@ -15,6 +15,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/smooth_heading_option.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/evaluation.h"
@@ -324,7 +325,7 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (caphub calibrate) applied before the filters");
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
-        ->check(CLI::Range(1.0, 1000.0))
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     cmd->add_option("--skeleton", o->skeleton,
                     "The body's skeleton: clip (measured from the clip, as the subject's own "

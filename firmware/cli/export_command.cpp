@@ -11,8 +11,11 @@
 #include "board/segment.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/terminal_progress.h"
 #include "firmware/export/export.h"
+#include "firmware/export/output_file.h"
+#include "firmware/export/partial_output.h"
 
 namespace caphub::firmware {
 
@@ -62,6 +65,11 @@ int runExport(const ExportArgs& a) {
     o.stoOrientations =
         a.orientations == "segments" ? StoOrientations::Segments : StoOrientations::Sensors;
 
+    // Ctrl-C or SIGTERM during the export removes the part it writes beside the target first.
+    std::optional<PartialOutput> part;
+    if (auto target = regularOutputTarget(a.output)) {
+        part.emplace(target->string() + ".part");
+    }
     TerminalProgress progress("caphub export", 8);
     FailureKind failure = FailureKind::Work;
     auto summary = exportRecording(
@@ -71,6 +79,9 @@ int runExport(const ExportArgs& a) {
     if (!summary) {
         fmt::print(stderr, "caphub export: {}\n", summary.error().message);
         return failure == FailureKind::Input ? kExitUsage : kExitRuntime;
+    }
+    if (part) {
+        part->published();  // renamed over the target
     }
     const ExportSummary& s = *summary;
     if (s.damagedBytes > 0 || s.malformedPoses > 0 || s.outOfOrderPoses > 0) {
@@ -117,7 +128,7 @@ void addExportCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::IsMember({"bvh", "glb", "csv", "sto"}));
     cmd->add_option("-o,--output", a->output, "The file to write")->required();
     cmd->add_option("--rate", a->rateHz, "Frames per second (default: the recording's pose rate)")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     cmd->add_option("--names", a->names,
                     "Joint names: hanim, cmu, unity, opensim (sto: OpenSim model bodies), or a "
                     "TOML map file (segment = \"name\")")
@@ -126,9 +137,8 @@ void addExportCommand(CLI::App& app, int& exitCode) {
         ->check(CLI::IsMember({"m", "cm"}))
         ->capture_default_str();
     cmd->add_option("--from", a->fromS, "Start, seconds from the first pose")
-        ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--to", a->toS, "End, seconds from the first pose")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteNonNegative());
+    cmd->add_option("--to", a->toS, "End, seconds from the first pose")->check(finiteNonNegative());
     cmd->add_option("--orientations", a->orientations,
                     "sto: the sensors' orientations (default; what OpenSense expects) or the "
                     "segments'")

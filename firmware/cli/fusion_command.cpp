@@ -11,6 +11,7 @@
 
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/smooth_heading_option.h"
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
@@ -377,7 +378,7 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
         ->add_option("--rate-hz", opts->rateHz,
                      "Feed every k-th sample to run at about this rate (holds the estimate "
                      "between)")
-        ->check(CLI::PositiveNumber);
+        ->check(finitePositive());
     replay->add_flag("--fixed", opts->fixed, "Run the fixed-point (Q-format) filter");
     replay->add_flag("--summary", opts->summary, "Several --in files: a row each and the mean");
     replay->add_flag("--smooth", opts->smooth,
@@ -397,7 +398,7 @@ void addFusionCommand(CLI::App& app, int& exitCode) {
                      "Rates to score at (0: the file's rate); repeatable; the objective is the "
                      "mean over them")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteNonNegative());
     cvCmd->add_flag("--no-fixed", cv->noFixed, "Leave out the fixed-point tables");
     cvCmd->callback([cv, &exitCode] { exitCode = runCv(*cv); });
 }

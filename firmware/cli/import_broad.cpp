@@ -10,6 +10,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/export/partial_output.h"
 #include "firmware/io/broad_csv.h"
 #include "firmware/reprocess.h"
 #include "firmware/runtime/recorder_stage.h"
@@ -93,7 +94,7 @@ std::string importedBoardText(const std::vector<Stream>& streams, const board::B
         b += fmt::format(
             "\n[[bus]]\nname = \"import-{0}\"\ntype = \"sim\"\nprotocol = \"i2c\"\n"
             "clock_hz = 400_000\n\n[[sensor]]\nname = {1}\nsegment = \"{2}\"\n"
-            "chip = \"icm20948\"\nbus = \"import-{0}\"\naddress = 0x68\n"
+            "chip = \"imported\"\nbus = \"import-{0}\"\naddress = 0x68\n"
             "drdy = \"gpiochip0:{0}\"\nodr_hz = {3}\naccel_range_g = 16\ngyro_range_dps = 2000\n",
             i, tomlString(st.name), board::segmentName(st.segment), st.trial.rateHz);
         if (source == nullptr) {
@@ -365,7 +366,13 @@ int runBroadImport(const BroadImportArgs& a) {
         ro.calibration.atS = {0.0};
     }
 
-    auto writer = RecordingWriter::create(a.output, meta);
+    // Written as OUT.part and renamed to OUT, never over anything, once complete.
+    if (::access(a.output.c_str(), F_OK) == 0) {
+        return fail(exitCodeForCreate(EEXIST),
+                    fmt::format("cannot create recording '{}': {}", a.output, errnoText(EEXIST)));
+    }
+    PartialOutput part(a.output + ".part");
+    auto writer = RecordingWriter::create(part.path(), meta);
     if (!writer) {
         return fail(exitCodeForCreate(writer.error().code), writer.error().message);
     }
@@ -373,15 +380,14 @@ int runBroadImport(const BroadImportArgs& a) {
     auto summary = reprocess(*loaded.board, rec, ro, sink);
     const int closed = (*writer)->close();
     if (!summary) {
-        std::error_code ignored;
-        fs::remove(a.output, ignored);
         return fail(kExitUsage, summary.error().message);
     }
     const int err = sink.firstError != 0 ? sink.firstError : closed;
     if (err != 0) {
-        std::error_code ignored;
-        fs::remove(a.output, ignored);
-        return fail(kExitRuntime, fmt::format("writing '{}': {}", a.output, errnoText(err)));
+        return fail(kExitRuntime, fmt::format("writing '{}': {}", part.path(), errnoText(err)));
+    }
+    if (auto published = part.publishNew(a.output); !published) {
+        return fail(exitCodeForCreate(published.error().code), published.error().message);
     }
     for (const Stream& st : streams) {
         fmt::print("{} ({}): {} samples at {:g} Hz on {}, {} lost in {} gap(s)\n", st.name,

@@ -20,6 +20,8 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/import_broad.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/number_checks.h"
+#include "firmware/export/partial_output.h"
 #include "firmware/io/xsens_text.h"
 #include "firmware/recording/writer.h"
 #include "firmware/runtime/recorder_stage.h"
@@ -123,7 +125,7 @@ std::string importedBoardText(const std::vector<XsensFile>& files,
         b += fmt::format(
             "\n[[bus]]\nname = \"import-{0}\"\ntype = \"sim\"\nprotocol = \"i2c\"\n"
             "clock_hz = 400_000\n\n[[sensor]]\nname = \"{1}\"\nsegment = \"{2}\"\n"
-            "chip = \"icm20948\"\nbus = \"import-{0}\"\naddress = 0x68\n"
+            "chip = \"imported\"\nbus = \"import-{0}\"\naddress = 0x68\n"
             "drdy = \"gpiochip0:{0}\"\nodr_hz = {3}\naccel_range_g = 16\ngyro_range_dps = 2000\n",
             i, files[i].deviceId, board::segmentName(segments[i]), files[i].rateHz);
     }
@@ -268,7 +270,14 @@ int runXsensImport(const ImportArgs& a) {
         return x.tNs != y.tNs ? x.tNs < y.tNs : x.sensor < y.sensor;
     });
 
-    auto writer = RecordingWriter::create(a.output, meta);
+    // Written as OUT.part and renamed to OUT, never over anything, once complete.
+    if (::access(a.output.c_str(), F_OK) == 0) {
+        fmt::print(stderr, "caphub import: cannot create recording '{}': {}\n", a.output,
+                   errnoText(EEXIST));
+        return exitCodeForCreate(EEXIST);
+    }
+    PartialOutput part(a.output + ".part");
+    auto writer = RecordingWriter::create(part.path(), meta);
     if (!writer) {
         fmt::print(stderr, "caphub import: {}\n", writer.error().message);
         return exitCodeForCreate(writer.error().code);
@@ -376,9 +385,13 @@ int runXsensImport(const ImportArgs& a) {
     }
     const int closed = w.close();
     if (rc != 0 || closed != 0) {
-        fmt::print(stderr, "caphub import: writing '{}': {}\n", a.output,
+        fmt::print(stderr, "caphub import: writing '{}': {}\n", part.path(),
                    errnoText(rc != 0 ? rc : closed));
         return kExitRuntime;
+    }
+    if (auto published = part.publishNew(a.output); !published) {
+        fmt::print(stderr, "caphub import: {}\n", published.error().message);
+        return exitCodeForCreate(published.error().code);
     }
     for (std::size_t i = 0; i < files.size(); ++i) {
         const auto& f = files[i];
@@ -425,14 +438,14 @@ void addImportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-o,--output", a->output, "The .cap to write (not overwritten)")->required();
     cmd->add_option("--mag-field-ut", a->magFieldUt,
                     "The local field in uT: magnetometer units normalised to it are scaled by it")
-        ->check(CLI::PositiveNumber)
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     cmd->add_option("--calibrate", a->calibrate,
                     "Poses: the pose the subject holds for the first second (npose, tpose), or "
                     "none (nominal mountings); default npose for Xsens, none for BROAD")
         ->check(CLI::IsMember({"npose", "tpose", "none"}));
     cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
-        ->check(CLI::Range(1.0, 1000.0))
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     cmd->callback([&exitCode, a] { exitCode = runImport(*a); });
 }

@@ -7,6 +7,7 @@
 
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/export/pose_track.h"
 #include "firmware/recording/reader.h"
@@ -137,10 +138,10 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
         "replay", "Play a recording's poses back through the preview (PNG, framebuffer, MJPEG)");
     cmd->add_option("recording", o->recording, "The recording (.cap)")->required();
     cmd->add_option("--speed", o->speed, "Recording seconds per real second (0: no pacing)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(finiteNonNegative())
         ->capture_default_str();
     cmd->add_option("--fps", o->fps, "Frames per second of recording time")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd->add_option("--preview", o->previews, "png:DIR, fb:/dev/fbN or http:[HOST:]PORT")
         ->required();

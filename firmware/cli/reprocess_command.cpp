@@ -21,9 +21,11 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/smooth_heading_option.h"
 #include "firmware/cli/terminal_progress.h"
 #include "firmware/export/output_file.h"
+#include "firmware/export/partial_output.h"
 #include "firmware/recording/reader.h"
 #include "firmware/recording/writer.h"
 #include "firmware/reprocess.h"
@@ -196,6 +198,7 @@ int runReprocess(const ReprocessArgs& a) {
     if (fs::is_regular_file(fs::symlink_status(partial, ec))) {
         fs::remove(partial, ec);  // a stale one from an interrupted run
     }
+    PartialOutput part(partial);  // removed on Ctrl-C or SIGTERM; SIGXFSZ a write error
     // The header needs the calibration applied, known only at the end: a placeholder run first
     // would double the time, so the header says what was asked and the summary what was done.
     const std::string asked =
@@ -248,6 +251,7 @@ int runReprocess(const ReprocessArgs& a) {
         removePartial();
         return fail(kExitRuntime, msg);
     }
+    part.published();
     const double wallS =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
     if (source->damagedBytes > 0 || source->malformed > 0) {
@@ -285,11 +289,11 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--at", a->at,
                     "When the calibration pose was held: seconds from the first sample "
                     "(tn: give it twice)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finiteNonNegative());
     cmd->add_option("--calibration", a->calibration,
                     "Sensor calibration file (caphub calibrate) instead of the recording's");
     cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
-        ->check(CLI::Range(1.0, 1000.0))
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     auto* smooth = cmd->add_flag("--smooth", a->smooth,
                                  "Non-causal pass over the whole take: forward-backward "

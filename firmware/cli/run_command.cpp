@@ -15,6 +15,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/evaluation.h"
 #include "firmware/runtime/hub.h"
@@ -309,7 +310,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
         ->capture_default_str();
     cmd->add_option("-d,--duration", o->durationS, "Seconds to capture (0: until Ctrl-C)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(finiteNonNegative())
         ->capture_default_str();
     cmd->add_option("-o,--out", o->out,
                     "Folder for a timestamped recording (default: the board's outputs)");
@@ -317,12 +318,12 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                                    "The recording's file (.cap); an existing file is not replaced");
     cmd->add_option("--sync-ms", o->syncMs,
                     "The most a power cut may lose of the recording: fdatasync interval, ms")
-        ->check(CLI::Range(10, 10000))
+        ->check(finiteRange(10, 10000))
         ->capture_default_str();
     cmd->add_option("--realtime", o->realtime,
                     "SCHED_FIFO priority of the capture threads, 1-99 (0: normal scheduling; "
                     "default: the board's [runtime])")
-        ->check(CLI::Range(0, 99));
+        ->check(finiteRange(0, 99));
     addVirtualSuitOptions(*cmd, o->suit);
     cmd->add_flag("--no-record", o->noRecord, "Do not write a recording")->excludes(record);
     cmd->add_option("--calibrate", o->bodyCalibration,
@@ -330,7 +331,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "for the first seconds) or none (the board's nominal mountings)")
         ->capture_default_str();
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd->add_option("--preview", o->previews,
                     "Preview frames to png:DIR, fb:/dev/fbN or http:[HOST:]PORT (repeatable; "
@@ -348,7 +349,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--no-stream", o->noStream, "No stream, whatever the board's outputs say");
     cmd->add_flag("--no-preview", o->noPreview, "No preview, whatever the board's outputs say");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Calibration file (caphub calibrate) applied before the filter and recorded");

@@ -12,6 +12,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/runtime/hub.h"
 
 namespace caphub::firmware {
@@ -200,7 +201,7 @@ void addSelftestCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
         ->capture_default_str();
     cmd->add_option("--seconds", o->seconds, "Seconds of samples to check")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd->callback([&exitCode, o] { exitCode = selftest(*o); });
 }

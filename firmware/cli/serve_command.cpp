@@ -14,6 +14,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/serve/auth.h"
@@ -275,22 +276,22 @@ void addServeCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--set-password", o->setPassword,
                   "Read a password from stdin, store its hash in the state folder, and exit");
     cmd->add_option("-d,--duration", o->durationS, "Seconds to run (0: until SIGTERM or Ctrl-C)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(finiteNonNegative())
         ->capture_default_str();
     cmd->add_option("--realtime", o->realtime, "SCHED_FIFO priority of the capture threads, 0-99")
-        ->check(CLI::Range(0, 99));
+        ->check(finiteRange(0, 99));
     cmd->add_option("--sync-ms", o->syncMs, "fdatasync interval of a take, ms")
-        ->check(CLI::Range(10, 10000))
+        ->check(finiteRange(10, 10000))
         ->capture_default_str();
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     addVirtualSuitOptions(*cmd, o->suit);
     cmd->add_option("--lead-in", o->leadIn,
                     "Virtual suit: the subject first holds this pose (tpose, npose), for a body "
                     "calibration at the start");
     cmd->add_option("--lead-in-s", o->leadInS, "Virtual suit: how long the lead-in pose is held")
-        ->check(CLI::Range(1.0, 120.0))
+        ->check(finiteRange(1.0, 120.0))
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (default: calibration.toml in the state folder, "
@@ -298,16 +299,16 @@ void addServeCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--preview", o->previews,
                     "More preview outputs: png:DIR, fb:/dev/fbN, http:[HOST:]PORT (repeatable)");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")
-        ->check(CLI::PositiveNumber)
+        ->check(finitePositive())
         ->capture_default_str();
     cmd->add_flag("--no-preview", o->noPreview, "No preview (the page's 3D view still works)");
     cmd->add_option("--status-file", o->statusFile, "Where to keep the live status");
     cmd->add_option("--http-threads", o->threads, "HTTP worker threads")
-        ->check(CLI::Range(4, 256))
+        ->check(finiteRange(4, 256))
         ->capture_default_str();
     cmd->add_option("--max-streams", o->maxStreams,
                     "Live streams (events, poses, MJPEG) served at once; the rest get 503")
-        ->check(CLI::Range(1, 254))
+        ->check(finiteRange(1, 254))
         ->capture_default_str();
     cmd->callback([&exitCode, o] { exitCode = runServe(*o); });
 }

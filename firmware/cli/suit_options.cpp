@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "firmware/cli/number_checks.h"
+
 namespace caphub::firmware {
 
 void addSuitOptions(CLI::App& cmd, SuitCliOptions& o) {
@@ -13,12 +15,12 @@ void addSuitOptions(CLI::App& cmd, SuitCliOptions& o) {
     cmd.add_option("--seed", o.seed, "Seed of the sensor errors and straps")->capture_default_str();
     cmd.add_option("--strap-deg", o.strapDeg,
                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(finiteNonNegative())
         ->capture_default_str();
     cmd.add_option("--chip-delay-ms", o.chipDelayMs,
                    "Delay every virtual sensor's signals by this (ms): a chip's digital low-pass, "
                    "which the virtual chips do not model (docs/virtual-suit.md)")
-        ->check(CLI::Range(0.0, 100.0))
+        ->check(finiteRange(0.0, 100.0))
         ->capture_default_str();
 }
 

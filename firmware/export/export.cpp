@@ -105,7 +105,8 @@ Result<ExportSummary> exportRecording(const std::string& recordingPath,
     if (!track) {
         // A window or rate the poses do not allow, or no poses at all, is in what was given; a
         // read that failed part-way is not.
-        const bool given = track.error().code == EINVAL || track.error().code == ENODATA;
+        const bool given = track.error().code == EINVAL || track.error().code == ENODATA ||
+                           track.error().code == EFBIG;
         return fail(given ? FailureKind::Input : FailureKind::Work,
                     Error{track.error().code,
                           fmt::format("'{}': {}", recordingPath, track.error().message)});

@@ -28,6 +28,10 @@ bool finite(const Eigen::Vector3f& v) {
 // Highest export rate accepted: far above any IMU pose rate, low enough to keep a typo such as
 // --rate 1e9 from filling the disk.
 constexpr double kMaxRateHz = 10000;
+// The most frames one track holds (each about 360 bytes: a 20-minute take at 1000 Hz is 1.2
+// million). A rate or a span beyond it (a pose record dated days after the others) is refused,
+// not allocated until memory runs out.
+constexpr double kMaxFrames = 4e6;
 
 }  // namespace
 
@@ -274,7 +278,9 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
     }
 
     const std::int64_t t0 = raw.front().tNs;
-    track.recordingDurationS = static_cast<double>(raw.back().tNs - t0) * 1e-9;
+    // In double: a damaged record's time may be anywhere in the 64-bit range.
+    track.recordingDurationS =
+        (static_cast<double>(raw.back().tNs) - static_cast<double>(t0)) * 1e-9;
     std::stable_sort(calibrations.begin(), calibrations.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
     for (const auto& [tNs, cal] : calibrations) {
@@ -301,15 +307,21 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
         return Error{EINVAL, fmt::format("--from {} s: the poses end at {:.3f} s", fromS,
                                          track.recordingDurationS)};
     }
+    // Frames at fromS + k / rate up to toS: how many, checked before any is made.
+    const double frames = std::floor((toS - fromS) * track.rateHz + 1e-6) + 1;
+    if (!(frames <= kMaxFrames)) {
+        return Error{EFBIG, fmt::format("{:.0f} frames ({:.3f} s at {:g} Hz): more than the {:.0f} "
+                                        "one export holds; export a part (--from, --to) or at a "
+                                        "lower --rate",
+                                        frames, toS - fromS, track.rateHz, kMaxFrames)};
+    }
+    const auto frameCount = static_cast<std::int64_t>(frames);
     const std::int64_t startNs = t0 + std::llround(fromS * 1e9);
-    const std::int64_t endNs = t0 + std::llround(toS * 1e9);
     const double periodNs = 1e9 / track.rateHz;
+    track.frames.reserve(static_cast<std::size_t>(frameCount));
     std::size_t i = 0;  // raw[i].tNs <= t < raw[i + 1].tNs
-    for (std::int64_t k = 0;; ++k) {
+    for (std::int64_t k = 0; k < frameCount; ++k) {
         const std::int64_t t = startNs + std::llround(static_cast<double>(k) * periodNs);
-        if (t > endNs) {
-            break;
-        }
         while (i + 1 < raw.size() && raw[i + 1].tNs <= t) {
             ++i;
         }

@@ -5,11 +5,13 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <string_view>
 
 #include <fmt/format.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include "hal/core/input_file.h"
@@ -71,6 +73,9 @@ std::string_view trim(std::string_view s) {
 }
 
 // A number, "nan" accepted only when allowNan.
+constexpr double kMaxTimeS = 1e6;
+constexpr double kMaxValue = 1e6;
+
 bool parseNumber(std::string_view s, bool allowNan, double& out) {
     s = trim(s);
     if (s.empty()) {
@@ -131,13 +136,21 @@ std::string nameFromComment(std::string_view comment) {
 }  // namespace
 
 Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
-    errno = 0;
-    if (auto ok = checkInputFile(path); !ok) {
-        return ok.error();
+    // Opened as every input file is (a directory, a device or a FIFO without a writer is said
+    // so, not waited on), then read through zlib, which reads a plain file as it is.
+    auto opened = openInputFile(path);
+    if (!opened) {
+        return opened.error();
     }
-    GzFile f(gzopen(path.c_str(), "rb"));
+    const int fd = ::dup(::fileno(*opened));
+    std::fclose(*opened);
+    errno = 0;
+    GzFile f(fd >= 0 ? gzdopen(fd, "rb") : nullptr);
     if (!f) {
-        return errnoError(errno != 0 ? -errno : -ENOENT, fmt::format("open '{}'", path.string()));
+        if (fd >= 0) {
+            ::close(fd);
+        }
+        return errnoError(errno != 0 ? -errno : -ENOMEM, fmt::format("open '{}'", path.string()));
     }
     BroadTrial trial;
     trial.name = path.filename().string();
@@ -212,6 +225,17 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
                 return lineError(path, lineNo,
                                  fmt::format("field '{}': expected a {}number, got '{}'",
                                              kColumns[i], nanOk ? "" : "finite ", trim(fields[i])),
+                                 columnOf(line, fields[i]));
+            }
+            // What a sample can hold: a reading far beyond any sensor's range would be infinite
+            // as the float a recording stores, and a time beyond 1e6 s (11 days) overflows the
+            // capture clock's nanoseconds once a rate multiplies it.
+            const double limit = i == 0 ? kMaxTimeS : kMaxValue;
+            if (std::abs(v[i]) > limit) {
+                return lineError(path, lineNo,
+                                 fmt::format("field '{}': {} is out of range (at most {:g} either "
+                                             "way)",
+                                             kColumns[i], trim(fields[i]), limit),
                                  columnOf(line, fields[i]));
             }
         }

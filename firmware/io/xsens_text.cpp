@@ -14,6 +14,9 @@ namespace caphub::firmware {
 
 namespace {
 
+// The largest reading accepted: no sensor measures beyond it (m/s^2, rad/s, field units).
+constexpr double kMaxValue = 1e6;
+
 struct Cell {
     std::string_view text;
     int column = 0;  // 1-based, in characters of the line
@@ -62,6 +65,12 @@ public:
         if (ec != std::errc() || ptr != end || !std::isfinite(v)) {
             return error(line, c.column,
                          fmt::format("{}: expected a number, found '{}'", name, c.text));
+        }
+        // Far beyond any sensor's range, and infinite as the float a recording stores.
+        if (std::abs(v) > kMaxValue) {
+            return error(line, c.column,
+                         fmt::format("{}: {} is out of range (at most {:g} either way)", name,
+                                     c.text, kMaxValue));
         }
         return v;
     }

@@ -47,9 +47,17 @@ Result<std::FILE*> openInputFile(const std::filesystem::path& path) {
     if (auto ok = checkInputFile(path); !ok) {
         return ok.error();
     }
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    // Not blocking in the open: a FIFO that nobody writes to would wait there for ever (it
+    // then reads as empty); reads block again as usual afterwards (a pipe being written to).
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0) {
         return errnoError(errno, "open " + quoted(path));
+    }
+    if (const int flags = ::fcntl(fd, F_GETFL);
+        flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+        const int err = errno;
+        ::close(fd);
+        return errnoError(err, "open " + quoted(path));
     }
     struct stat st {};
     if (::fstat(fd, &st) != 0) {

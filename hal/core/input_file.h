@@ -19,7 +19,8 @@ namespace caphub {
 // not a file" (ENXIO).
 Result<void> checkInputFile(const std::filesystem::path& path);
 
-// Opens it for reading (binary, close-on-exec) after the same checks; the caller closes it.
+// Opens it for reading (binary, close-on-exec) after the same checks; the caller closes it. The
+// open does not wait for a FIFO's writer (one without any reads as empty).
 Result<std::FILE*> openInputFile(const std::filesystem::path& path);
 
 // Its whole content; a file larger than maxBytes is refused unread (EFBIG: "'P' is N bytes,

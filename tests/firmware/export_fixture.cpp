@@ -111,6 +111,14 @@ std::vector<RecordedPose> writeWalkRecording(const std::string& path,
         }
         poses.push_back(p);
     }
+    if (options.extraPoseAtS && options.withPoses && !poses.empty()) {
+        const RecordedPose& last = poses.back();
+        const std::int64_t tNs =
+            options.startNs + static_cast<std::int64_t>(std::llround(*options.extraPoseAtS * 1e9));
+        if ((*writer)->writePose(timestampFromNs(tNs), last.rootM, last.qLocal, 0) != 0) {
+            throw std::runtime_error("writePose failed");
+        }
+    }
     if ((*writer)->close() != 0) {
         throw std::runtime_error("close failed");
     }

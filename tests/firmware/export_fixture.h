@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,9 @@ struct WalkRecordingOptions {
     std::uint32_t heldSegments = 0;
     double heldFromS = 0;
     double heldToS = -1;
+    // One more pose (a copy of the last) this long after the first: a record whose time is far
+    // off the others, as a damaged file can hold; none when not set.
+    std::optional<double> extraPoseAtS;
 };
 
 // Writes the recording (replacing any file at path) and returns the poses it holds.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -303,6 +304,92 @@ TEST(BoardSize, ABoardFileWhoseEmbeddedCopyDoesNotFitIsInvalid) {
         EXPECT_THAT(r.output, Not(HasSubstr("valid:"))) << c;
     }
     EXPECT_FALSE(fs::exists(path("escaped.cap")));
+}
+
+// ---- found by trying the program as an attacker would (2026-11-27) ----
+
+// "nan" and "inf" pass CLI11's own number checks (every comparison with them is false): an
+// import or a reprocess with --pose-rate nan looped for ever. Each is refused at once.
+TEST(NumberOptions, NotAFiniteNumberIsRefusedInsteadOfLoopedOn) {
+    const std::vector<std::string> commands = {
+        "reprocess " + walk() + " --pose-rate nan -o " + path("nan.cap"),
+        "export " + walk() + " --format csv --rate inf -o " + path("inf.csv"),
+        "replay " + walk() + " --speed 0 --fps nan --preview png:" + path("frames-nan"),
+        "replay " + walk() + " --speed nan --preview png:" + path("frames-nan"),
+        "evaluate --board sim-upper10 --bvh " + path("absent.bvh") + " --pose-rate nan",
+        "run --board sim-upper10 --duration nan --no-record --no-preview",
+    };
+    for (const auto& c : commands) {
+        const CliRun r = shell("timeout 60 " + std::string(CAPHUB_BINARY) + " " + c);
+        EXPECT_EQ(r.exitCode, 2) << "caphub " << c << "\n" << r.output;
+        EXPECT_THAT(r.output, HasSubstr("is not a finite number")) << "caphub " << c;
+    }
+    EXPECT_FALSE(fs::exists(path("nan.cap")));
+    EXPECT_FALSE(fs::exists(path("nan.cap.part")));
+}
+
+// A pose record dated days after the others (a damaged file's, its checksum intact): the export
+// would have made millions of frames until memory ran out, or, with a time near the end of the
+// clock, none, and replaced OUT with an empty file before crashing.
+TEST(ExportOutput, APoseFarAfterTheOthersIsRefusedAndTheOldFileKept) {
+    caphub::firmware::testing::WalkRecordingOptions o;
+    o.seconds = 0.5;
+    o.extraPoseAtS = 1e6;
+    const std::string far = path("far-pose.cap");
+    caphub::firmware::testing::writeWalkRecording(far, o);
+    const std::string old = writeFile("kept.csv", "old contents\n");
+    const CliRun r = caphub("export " + far + " --format csv -o " + old);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("frames (1000000.000 s at 100 Hz): more than the 4000000 one "
+                                    "export holds"));
+    EXPECT_EQ(readAll(old), "old contents\n");
+    EXPECT_FALSE(fs::exists(old + ".part"));
+    // Within the bound, a window of it exports.
+    const CliRun part = caphub("export " + far + " --format csv --to 0.4 -o " + old);
+    EXPECT_EQ(part.exitCode, 0) << part.output;
+}
+
+// A FIFO that nobody writes to, given as a recording or a stream: it used to hang every command
+// in its open; it now reads as empty.
+TEST(FileInputs, AFifoWithoutAWriterIsNotWaitedOn) {
+    const std::string fifo = path("in.fifo");
+    fs::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+    const std::vector<std::string> commands = {
+        "info " + fifo,
+        "export " + fifo + " --format csv -o " + path("from-fifo.csv"),
+        "reprocess " + fifo + " -o " + path("from-fifo.cap"),
+        "replay " + fifo + " --speed 0 --preview png:" + path("frames-fifo"),
+        "fusion replay --in " + fifo,
+    };
+    for (const auto& c : commands) {
+        const CliRun r = shell("timeout 20 " + std::string(CAPHUB_BINARY) + " " + c);
+        EXPECT_EQ(r.exitCode, 2) << "caphub " << c << "\n" << r.output;
+    }
+}
+
+// replay --preview png:DIR wrote each frame through a symbolic link of that name (wherever it
+// pointed) and hung on a FIFO of that name. Neither is written now.
+TEST(ReplayOutput, AFrameNamedByASymlinkOrAFifoIsNotWritten) {
+    const std::string frames = path("frames-links");
+    fs::create_directories(frames);
+    const std::string victim = writeFile("victim.txt", "keep me\n");
+    fs::remove(frames + "/frame_000002.png");
+    fs::create_symlink(victim, frames + "/frame_000002.png");
+    const CliRun viaLink = shell("timeout 60 " + std::string(CAPHUB_BINARY) + " replay " + walk() +
+                                 " --speed 0 --preview png:" + frames);
+    EXPECT_THAT(viaLink.output, HasSubstr("a symbolic link: not followed")) << viaLink.output;
+    EXPECT_EQ(readAll(victim), "keep me\n");
+
+    const std::string withFifo = path("frames-fifo-inside");
+    fs::create_directories(withFifo);
+    fs::remove(withFifo + "/frame_000000.png");
+    ASSERT_EQ(::mkfifo((withFifo + "/frame_000000.png").c_str(), 0644), 0);
+    const CliRun viaFifo = shell("timeout 60 " + std::string(CAPHUB_BINARY) + " replay " + walk() +
+                                 " --speed 0 --preview png:" + withFifo);
+    EXPECT_NE(viaFifo.exitCode, 124) << "timed out: " << viaFifo.output;
+    EXPECT_THAT(viaFifo.output, HasSubstr("a FIFO: not written")) << viaFifo.output;
+    EXPECT_TRUE(isFifo(withFifo + "/frame_000000.png"));
 }
 
 }  // namespace

@@ -171,6 +171,50 @@ TEST(XsensText, MalformedInputNamesFileLineAndColumn) {
     EXPECT_THAT(g.error().message, HasSubstr(pg + ":6:1: the header has no Gyr_Z column"));
 }
 
+// A reading past any sensor's range (1e39 was accepted and became an infinite float in the
+// recording) is refused with its cell.
+TEST(XsensText, AValueNoSampleCanHoldIsRefusedWithItsCell) {
+    auto rows = lines(readAll(kShank));
+    rows.resize(12);
+    std::string& l = rows[8];
+    std::size_t at = 0;
+    for (int tab = 0; tab < 15; ++tab) {
+        at = l.find('\t', at) + 1;
+    }
+    l.replace(at, l.find('\t', at) - at, "1e39");
+    const std::string p = writeLines("MT_huge_00B421AF.txt", rows);
+    auto f = caphub::firmware::readXsensText(p);
+    ASSERT_FALSE(f.ok());
+    EXPECT_EQ(f.error().message, p + ":9:" + std::to_string(at + 1) +
+                                     ": Acc_Y: 1e39 is out of range (at most 1e+06 either way)");
+}
+
+// Xsens MTw run at 40, 60, 80 or 120 Hz too: the imported board's sensors take any rate (they
+// used to be ICM-20948s, which cannot run at 60 Hz, and the import failed on its own board).
+TEST(ImportCli, AnXsensTakeAtSixtyHertzImportsAndReprocesses) {
+    std::vector<std::string> files;
+    for (const std::string& src : {kShank, kThigh}) {
+        std::string text = readAll(src);
+        const std::string from = "Update Rate: 100.0Hz";
+        ASSERT_NE(text.find(from), std::string::npos);
+        text.replace(text.find(from), from.size(), "Update Rate: 60.0Hz");
+        const std::string p = temp("at60_" + fs::path(src).filename().string());
+        std::ofstream(p, std::ios::binary | std::ios::trunc) << text;
+        files.push_back(p);
+    }
+    const std::string out = temp("at60.cap");
+    fs::remove(out);
+    const CliRun r =
+        caphub("import " + files[0] + " " + files[1] + " --map " + mapFile() + " -o " + out);
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("300 samples at 60 Hz on r_calf"));
+    EXPECT_THAT(r.output, HasSubstr("poses: "));
+    const std::string again = temp("at60_re.cap");
+    fs::remove(again);
+    const CliRun re = caphub("reprocess " + out + " -o " + again);
+    EXPECT_EQ(re.exitCode, 0) << re.output;
+}
+
 // The shipped excerpt of the two MTw on one leg, with 5 packets of the thigh's taken out: every
 // sample is in the .cap, the gap is an event pair, and info describes it.
 TEST(ImportCli, TwoXsensSensorsBecomeARecordingThatInfoDescribes) {

@@ -6,6 +6,8 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace caphub::firmware {
 namespace {
@@ -82,6 +84,39 @@ TEST(BroadCsv, RefusesShortRowsNanImuValuesAndTimeGoingBack) {
         EXPECT_NE(t.error().message.find(":3:"), std::string::npos) << t.error().message;
         EXPECT_NE(t.error().message.find(c.expect), std::string::npos) << t.error().message;
     }
+}
+
+TEST(BroadCsv, RefusesValuesNoSampleCanHoldWithTheirLineAndField) {
+    // A reading past any sensor's range would be infinite as a recording's float; a time past
+    // 1e6 s overflows the capture clock once multiplied by a rate.
+    const auto acc = writeText("caphub_broad_acc_1e39.csv",
+                               std::string(kHeader) + "0,0,0,0,0,0,9.8,20,0,-40,1,0,0,0,0\n" +
+                                   "0.01,0,0,0,0,1e39,9.8,20,0,-40,1,0,0,0,0\n");
+    auto a = readBroadCsv(acc);
+    ASSERT_FALSE(a.ok());
+    EXPECT_EQ(a.error().message, acc.string() +
+                                     ":3:14: field 'acc_y': 1e39 is out of range "
+                                     "(at most 1e+06 either way)");
+    const auto t = writeText("caphub_broad_t_1e10.csv",
+                             std::string(kHeader) + "0,0,0,0,0,0,9.8,20,0,-40,1,0,0,0,0\n" +
+                                 "1e10,0,0,0,0,0,9.8,20,0,-40,1,0,0,0,0\n");
+    auto b = readBroadCsv(t);
+    ASSERT_FALSE(b.ok());
+    EXPECT_EQ(b.error().message,
+              t.string() + ":3:1: field 't': 1e10 is out of range (at most 1e+06 either way)");
+}
+
+TEST(BroadCsv, AFifoWithoutAWriterReadsAsEmptyInsteadOfWaiting) {
+    const auto p = std::filesystem::temp_directory_path() /
+                   ("caphub_broad_fifo_" + std::to_string(::getpid()));
+    std::filesystem::remove(p);
+    ASSERT_EQ(::mkfifo(p.c_str(), 0644), 0);
+    auto r = readBroadCsv(p);  // returned at all: before, the open waited for a writer
+    std::filesystem::remove(p);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().message, p.string() +
+                                     ":1:1: expected the header line, found the end of "
+                                     "the file");
 }
 
 TEST(BroadCsv, RefusesAWrongHeader) {

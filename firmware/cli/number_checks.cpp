@@ -1,0 +1,52 @@
+#include "firmware/cli/number_checks.h"
+
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <fmt/format.h>
+
+namespace caphub::firmware {
+
+namespace {
+
+// The value parsed the way the option will be (strtod accepts nan and inf), or the reason not.
+CLI::Validator finiteCheck(const std::string& description, double min, bool minOpen, double max) {
+    return CLI::Validator(
+        [min, minOpen, max](std::string& input) -> std::string {
+            char* end = nullptr;
+            const double v = std::strtod(input.c_str(), &end);
+            if (input.empty() || end == input.c_str() || *end != '\0') {
+                return fmt::format("Value {} is not a number", input);
+            }
+            if (!std::isfinite(v)) {
+                return fmt::format("Value {} is not a finite number", input);
+            }
+            if (v < min || (minOpen && v == min) || v > max) {
+                if (max == std::numeric_limits<double>::max()) {
+                    return fmt::format("Value {} must be {} {}", input,
+                                       minOpen ? "above" : "at least", min);
+                }
+                return fmt::format("Value {} not in range {} to {}", input, min, max);
+            }
+            return std::string();
+        },
+        description);
+}
+
+}  // namespace
+
+CLI::Validator finiteRange(double min, double max) {
+    return finiteCheck(fmt::format("FINITE in [{} - {}]", min, max), min, false, max);
+}
+
+CLI::Validator finitePositive() {
+    return finiteCheck("POSITIVE", 0.0, true, std::numeric_limits<double>::max());
+}
+
+CLI::Validator finiteNonNegative() {
+    return finiteCheck("NONNEGATIVE", 0.0, false, std::numeric_limits<double>::max());
+}
+
+}  // namespace caphub::firmware
