@@ -126,7 +126,9 @@ void addExportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--format", a->format, "Output format")
         ->required()
         ->check(CLI::IsMember({"bvh", "glb", "csv", "sto"}));
-    cmd->add_option("-o,--output", a->output, "The file to write")->required();
+    cmd->add_option("-o,--output", a->output, "The file to write")
+        ->required()
+        ->check(nonEmptyPath());
     cmd->add_option("--rate", a->rateHz, "Frames per second (default: the recording's pose rate)")
         ->check(finitePositive());
     cmd->add_option("--names", a->names,

@@ -435,7 +435,9 @@ void addImportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--board", a->board,
                     "BROAD: the board the streams were simulated on (nominal mountings and "
                     "positions); default: the one their comment lines name");
-    cmd->add_option("-o,--output", a->output, "The .cap to write (not overwritten)")->required();
+    cmd->add_option("-o,--output", a->output, "The .cap to write (not overwritten)")
+        ->required()
+        ->check(nonEmptyPath());
     cmd->add_option("--mag-field-ut", a->magFieldUt,
                     "The local field in uT: magnetometer units normalised to it are scaled by it")
         ->check(finiteRange(1.0, 1000.0))

@@ -11,6 +11,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/info.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/recording/reader.h"
 #include "firmware/version.h"
 #include "hal/chip_info.h"
@@ -218,7 +219,7 @@ void addInfoCommands(CLI::App& app, int& exitCode) {
     CLI::App* info = app.add_subcommand(
         "info", "Print a recording's summary, or this build's chips, segments and data folder");
     auto file = std::make_shared<std::string>();
-    info->add_option("FILE", *file, "A .cap recording to describe");
+    info->add_option("FILE", *file, "A .cap recording to describe")->check(nonEmptyPath());
     info->callback([&exitCode, file] {
         if (file->empty()) {
             printInfo();

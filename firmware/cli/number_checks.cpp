@@ -45,6 +45,14 @@ CLI::Validator finitePositive() {
     return finiteCheck("POSITIVE", 0.0, true, std::numeric_limits<double>::max());
 }
 
+CLI::Validator nonEmptyPath() {
+    return CLI::Validator(
+        [](std::string& input) -> std::string {
+            return input.empty() ? std::string("an empty path names no file") : std::string();
+        },
+        "PATH");
+}
+
 CLI::Validator finiteNonNegative() {
     return finiteCheck("NONNEGATIVE", 0.0, false, std::numeric_limits<double>::max());
 }

@@ -15,4 +15,7 @@ CLI::Validator finitePositive();
 // A finite number at or above zero.
 CLI::Validator finiteNonNegative();
 
+// Not an empty string: a path given as '' (an unset shell variable) is a mistake, not "none".
+CLI::Validator nonEmptyPath();
+
 }  // namespace caphub::firmware

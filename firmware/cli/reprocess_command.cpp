@@ -281,7 +281,9 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
         "reprocess",
         "Run calibration, fusion and body again on a recording's raw samples into a new one");
     cmd->add_option("REC", a->recording, "A .cap recording with raw samples")->required();
-    cmd->add_option("-o,--output", a->output, "The recording to write")->required();
+    cmd->add_option("-o,--output", a->output, "The recording to write")
+        ->required()
+        ->check(nonEmptyPath());
     cmd->add_option("--calibrate", a->calibrate,
                     "Body calibration: tpose, npose or tn (T-pose then N-pose) held at --at, or "
                     "none (nominal mountings); default: what the recording did")

@@ -236,6 +236,9 @@ TEST(ExitCodes, EveryInputThatCannotBeUsedExitsTwo) {
         "export " + walk() + " --format csv -o " + path("no-such-folder/y.csv"),
         "info " + path("absent.cap"),
         "info " + notRecording,
+        "info ''",  // an unset variable: not the build's information
+        "export " + walk() + " --format csv -o ''",
+        "reprocess " + walk() + " -o ''",
         "replay " + notRecording + " --preview png:" + path("frames"),
         "replay " + path("absent.cap") + " --preview png:" + path("frames"),
         "status --file " + path("absent.json"),
