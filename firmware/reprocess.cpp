@@ -18,6 +18,15 @@ namespace caphub::firmware {
 
 namespace {
 
+// A recording `caphub import` made (its metadata has an [import] table).
+bool importedRecording(const std::string& metadata) {
+    try {
+        return toml::parse(metadata).contains("import");
+    } catch (const toml::parse_error&) {
+        return false;
+    }
+}
+
 std::string textOf(const RecordView& v) {
     return std::string(reinterpret_cast<const char*>(v.payload.data()), v.payload.size());
 }
@@ -391,6 +400,11 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
                         bodyOptions.calibrate = *m == body::CalibrationMethod::TPose
                                                     ? body::ReferencePoseKind::T
                                                     : body::ReferencePoseKind::N;
+                        // `caphub import` calibrated in the pose held from the first sample
+                        // (docs/import.md), not after the capture's settling time.
+                        if (importedRecording(source.metadata)) {
+                            bodyOptions.settle = Duration::zero();
+                        }
                         planned =
                             fmt::format("the recording's: {} held from {:.3f} s",
                                         *m == body::CalibrationMethod::TPose ? "T-pose" : "N-pose",
