@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <unordered_map>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -231,6 +232,7 @@ SmoothedOrientations smoothAll(const board::Board& board, const SourceRecording&
 Result<SourceRecording> readSourceRecording(RecordingReader& reader) {
     SourceRecording out;
     out.metadata = reader.metadata();
+    std::unordered_map<int, Timestamp> latest;  // each sensor's latest raw sample
     RecordView v;
     for (;;) {
         const int r = reader.next(v);
@@ -250,6 +252,13 @@ Result<SourceRecording> readSourceRecording(RecordingReader& reader) {
                     continue;
                 }
                 it.t = it.sample.t;
+                if (auto [at, fresh] = latest.try_emplace(it.sensor, it.t); !fresh) {
+                    if (it.t <= at->second) {
+                        ++out.outOfOrder;
+                        continue;
+                    }
+                    at->second = it.t;
+                }
                 ++out.samples;
                 break;
             case cap::RecordType::Event: {

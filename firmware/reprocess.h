@@ -46,6 +46,9 @@ struct SourceRecording {
     std::uint64_t samples = 0;
     std::uint64_t damagedBytes = 0;
     std::uint64_t malformed = 0;  // records whose payload did not decode (skipped)
+    // Raw samples at or before their sensor's previous one (skipped): two recordings joined,
+    // a damaged time. Fed to a filter they would turn it backwards.
+    std::uint64_t outOfOrder = 0;
 };
 
 // Reads every record of a recording (a damaged one: what the reader recovers).

@@ -254,11 +254,12 @@ int runReprocess(const ReprocessArgs& a) {
     part.published();
     const double wallS =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
-    if (source->damagedBytes > 0 || source->malformed > 0) {
+    if (source->damagedBytes > 0 || source->malformed > 0 || source->outOfOrder > 0) {
         fmt::print(stderr,
                    "caphub reprocess: the recording is damaged: {} bytes skipped, {} malformed "
-                   "record(s); reprocessed what was readable\n",
-                   source->damagedBytes, source->malformed);
+                   "record(s), {} raw sample(s) not after their sensor's previous one; "
+                   "reprocessed what was readable\n",
+                   source->damagedBytes, source->malformed, source->outOfOrder);
     }
     fmt::print("{}: {} samples ({:.3f} s), {} orientations, {} poses at {:g} Hz{}\n", a.output,
                summary->samples, summary->durationS, summary->orientations, summary->poses,

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "firmware/recording/reader.h"
+#include "firmware/recording/writer.h"
 #include "tests/firmware/cli_run.h"
 #include "tests/firmware/sim_speed.h"
 
@@ -233,6 +234,44 @@ TEST_F(Reprocess, TheSmoothedRecordingHasEveryRecordAndInfoReadsIt) {
         apart = std::max(apart, gotBoth.poseJoints[i].angularDistance(got.poseJoints[i]));
     }
     EXPECT_GT(apart, 1e-4f);
+}
+
+// Two takes joined into one file: the second's samples go back in time. They were fed to the
+// filters as if in order; now each sample not after its sensor's previous one is skipped and
+// counted with the recording's damage.
+TEST_F(Reprocess, RawSamplesGoingBackInTimeAreSkippedAndSaid) {
+    using namespace caphub::firmware;
+    const std::string joined = temp("joined.cap");
+    fs::remove(joined);
+    std::uint64_t written = 0;
+    {
+        auto reader = RecordingReader::open(source_);
+        ASSERT_TRUE(reader.ok());
+        auto writer = RecordingWriter::create(joined, (*reader)->metadata());
+        ASSERT_TRUE(writer.ok()) << writer.error().message;
+        for (int copy = 0; copy < 2; ++copy) {
+            auto again = RecordingReader::open(source_);
+            ASSERT_TRUE(again.ok());
+            RecordView v;
+            int n = 0;
+            while ((*again)->next(v) == 1 && n < 2000) {
+                int sensor = -1;
+                caphub::hal::ImuSample s;
+                if (v.type == cap::RecordType::RawSample && decodeRawSample(v, sensor, s)) {
+                    ASSERT_EQ((*writer)->writeRawSample(sensor, s), 0);
+                    ++n;
+                    ++written;
+                }
+            }
+        }
+        ASSERT_EQ((*writer)->close(), 0);
+    }
+    const std::string out = temp("joined_re.cap");
+    fs::remove(out);
+    const CliRun r = caphub("reprocess " + joined + " -o " + out);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("2000 raw sample(s) not after their sensor's previous one"));
+    EXPECT_EQ(contentsOf(out).samples, written - 2000);
 }
 
 TEST_F(Reprocess, BadOptionsAndInputsAreRefusedWithExitCode2) {
