@@ -2,6 +2,7 @@
 // writes the estimate, and scores it against the ground truth when the file has one.
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -13,6 +14,8 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/number_checks.h"
 #include "firmware/cli/smooth_heading_option.h"
+#include "firmware/export/output_file.h"
+#include "firmware/export/partial_output.h"
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
 #include "fusion/smoother.h"
@@ -21,6 +24,8 @@
 namespace caphub::firmware {
 
 namespace {
+
+namespace fs = std::filesystem;
 
 struct FusionReplayOptions {
     std::vector<std::string> inputs;
@@ -55,20 +60,42 @@ std::vector<Quatd> smoothedEstimate(const std::vector<fusion::ImuSample>& sample
     return out;
 }
 
-Result<void> writeEstimate(const std::string& path, const BroadTrial& trial,
-                           const std::vector<Quatd>& q) {
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "w"), &std::fclose);
-    if (!f) {
-        return errnoError(-errno, fmt::format("create '{}'", path));
+// The estimate as CSV, written as an export is (docs/exports.md): a regular file only, never
+// the input itself, via PATH.part renamed over it when complete (Ctrl-C leaves the old file).
+Result<void> writeEstimate(const std::string& path, const std::string& input,
+                           const BroadTrial& trial, const std::vector<Quatd>& q) {
+    auto target = exporter::regularOutputTarget(path);
+    if (!target) {
+        return target.error();
     }
-    fmt::print(f.get(), "t,qw,qx,qy,qz\n");
-    for (std::size_t i = 0; i < q.size(); ++i) {
-        fmt::print(f.get(), "{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", trial.samples[i].tS, q[i].w(),
-                   q[i].x(), q[i].y(), q[i].z());
+    std::error_code ec;
+    if (fs::exists(*target, ec) && fs::equivalent(*target, input, ec)) {
+        return Error{EINVAL, fmt::format("--out '{}' is the --in file", path)};
     }
-    if (std::fflush(f.get()) != 0 || std::ferror(f.get())) {
-        return errnoError(-errno, fmt::format("write '{}'", path));
+    PartialOutput part(target->string() + ".part");
+    {
+        std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(part.path().c_str(), "w"),
+                                                          &std::fclose);
+        if (!f) {
+            return errnoError(-errno, fmt::format("create '{}'", part.path()));
+        }
+        std::string line;
+        bool ok = std::fputs("t,qw,qx,qy,qz\n", f.get()) >= 0;
+        for (std::size_t i = 0; ok && i < q.size(); ++i) {
+            line = fmt::format("{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", trial.samples[i].tS,
+                               q[i].w(), q[i].x(), q[i].y(), q[i].z());
+            ok = std::fwrite(line.data(), 1, line.size(), f.get()) == line.size();
+        }
+        if (!ok || std::fflush(f.get()) != 0 || std::ferror(f.get())) {
+            return errnoError(-errno, fmt::format("write '{}'", part.path()));
+        }
     }
+    fs::rename(part.path(), *target, ec);
+    if (ec) {
+        return Error{ec.value(), fmt::format("rename '{}' to '{}': {}", part.path(),
+                                             target->string(), ec.message())};
+    }
+    part.published();
     return {};
 }
 
@@ -157,7 +184,7 @@ int runReplay(const FusionReplayOptions& o) {
             smoothed = smoothedEstimate(trial->samples, decimation, params, so);
         }
         if (!o.output.empty()) {
-            if (auto r = writeEstimate(o.output, *trial, o.smooth ? smoothed : estimate); !r) {
+            if (auto r = writeEstimate(o.output, in, *trial, o.smooth ? smoothed : estimate); !r) {
                 fmt::print(stderr, "caphub fusion replay: {}\n", r.error().message);
                 return exitCodeForCreate(r.error().code);
             }

@@ -331,7 +331,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "for the first seconds) or none (the board's nominal mountings)")
         ->capture_default_str();
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
-        ->check(finitePositive())
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     cmd->add_option("--preview", o->previews,
                     "Preview frames to png:DIR, fb:/dev/fbN or http:[HOST:]PORT (repeatable; "

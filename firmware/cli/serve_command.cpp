@@ -284,7 +284,7 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->check(finiteRange(10, 10000))
         ->capture_default_str();
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
-        ->check(finitePositive())
+        ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
     addVirtualSuitOptions(*cmd, o->suit);
     cmd->add_option("--lead-in", o->leadIn,

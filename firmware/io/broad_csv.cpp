@@ -73,8 +73,8 @@ std::string_view trim(std::string_view s) {
 }
 
 // A number, "nan" accepted only when allowNan.
-constexpr double kMaxTimeS = 1e6;
-constexpr double kMaxValue = 1e6;
+constexpr double kMaxBroadTimeS = 1e6;
+constexpr double kMaxBroadValue = 1e6;
 
 bool parseNumber(std::string_view s, bool allowNan, double& out) {
     s = trim(s);
@@ -230,7 +230,7 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
             // What a sample can hold: a reading far beyond any sensor's range would be infinite
             // as the float a recording stores, and a time beyond 1e6 s (11 days) overflows the
             // capture clock's nanoseconds once a rate multiplies it.
-            const double limit = i == 0 ? kMaxTimeS : kMaxValue;
+            const double limit = i == 0 ? kMaxBroadTimeS : kMaxBroadValue;
             if (std::abs(v[i]) > limit) {
                 return lineError(path, lineNo,
                                  fmt::format("field '{}': {} is out of range (at most {:g} either "

@@ -15,7 +15,7 @@ namespace caphub::firmware {
 namespace {
 
 // The largest reading accepted: no sensor measures beyond it (m/s^2, rad/s, field units).
-constexpr double kMaxValue = 1e6;
+constexpr double kMaxXsensValue = 1e6;
 
 struct Cell {
     std::string_view text;
@@ -67,10 +67,10 @@ public:
                          fmt::format("{}: expected a number, found '{}'", name, c.text));
         }
         // Far beyond any sensor's range, and infinite as the float a recording stores.
-        if (std::abs(v) > kMaxValue) {
+        if (std::abs(v) > kMaxXsensValue) {
             return error(line, c.column,
                          fmt::format("{}: {} is out of range (at most {:g} either way)", name,
-                                     c.text, kMaxValue));
+                                     c.text, kMaxXsensValue));
         }
         return v;
     }

@@ -427,6 +427,16 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         }
         return at;
     };
+    if (point_ < 0) {
+        // Nothing held (a skeleton whose points came out not finite left none qualifying): the
+        // lowest point, as at a landing.
+        point_ = 0;
+        for (int k = 1; k < 6; ++k) {
+            if (r[static_cast<std::size_t>(k)].y() < r[static_cast<std::size_t>(point_)].y()) {
+                point_ = k;
+            }
+        }
+    }
     const Vec3d here = placeOn(point_);
     // The qualifying point among [from, to] predicted to move least, and its speed.
     auto leastMoving = [&](int from, int to) {
@@ -450,7 +460,8 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         best = leastMoving(3 * plantedFoot_, 3 * plantedFoot_ + 2).first;
         bestSpeed = -1;
     }
-    if (best != point_ &&
+    // best < 0: no point qualifies (not finite): the held one stays.
+    if (best >= 0 && best != point_ &&
         (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
         if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
             ++stanceChanges_;

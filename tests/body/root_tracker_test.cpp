@@ -223,6 +223,20 @@ TEST(RootTracker, AFootSlidingAfterItsSlipSpanCarriesTheRootOnlyAlongTheFloorAnd
     EXPECT_LT(run(false, Vec3d(0.0, 0.0, 1.0)).norm(), 1e-12);
 }
 
+TEST(RootTracker, ASkeletonWhosePointsAreNotFiniteNeverIndexesANonePoint) {
+    // A clip whose offsets are 1e200 m: the feet's points come out infinite or NaN, no point
+    // qualifies, and the least moving one was "none" (-1), then used as an index (a SIGBUS in
+    // evaluate). The held point stays; the solve goes on.
+    Dimensions d = dims();
+    d.offsetM[idx(S::LCalf)] *= 1e200;
+    d.offsetM[idx(S::RCalf)] *= 1e200;
+    BodySolver s = makeSolver(d);
+    for (int k = 0; k < 20; ++k) {
+        s.solve(frameOf(crouchPose(0.1 * k, 0.0)), 0.01);
+        EXPECT_GE(s.rootTracker().contactPoint(), 0);
+    }
+}
+
 // Sitting: thighs forward (hips -90 deg), shanks at kneeDeg from the thighs, the feet flat
 // with the shanks vertical; the trunk upright.
 Pose sitPose(double kneeDeg) {

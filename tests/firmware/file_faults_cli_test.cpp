@@ -329,6 +329,37 @@ TEST(NumberOptions, NotAFiniteNumberIsRefusedInsteadOfLoopedOn) {
     }
     EXPECT_FALSE(fs::exists(path("nan.cap")));
     EXPECT_FALSE(fs::exists(path("nan.cap.part")));
+    // A pose rate whose period rounds to nothing spun the capture's pipeline thread, deaf to
+    // Ctrl-C: run and serve take 1-1000 poses a second, as evaluate and reprocess do.
+    const CliRun fast = shell("timeout -k 3 30 " + std::string(CAPHUB_BINARY) +
+                              " run --board sim-upper10 --duration 0.5 --pose-rate 3e9 "
+                              "--no-record --no-preview");
+    EXPECT_EQ(fast.exitCode, 2) << fast.output;
+    EXPECT_THAT(fast.output, HasSubstr("--pose-rate: Value 3e9 not in range 1 to 1000"));
+}
+
+// fusion replay --out: written as an export is. It aborted on a full disk (an exception from
+// the formatting library), left a truncated file when interrupted, and wrote over its own --in.
+TEST(FusionReplayOutput, NeverItsInputNorADeviceAndWrittenWhole) {
+    const std::string in = writeFile(
+        "trial.csv",
+        "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z\n"
+        "0,0,0,0,0,0,9.81,0,20,-40\n0.01,0,0,0,0,0,9.81,0,20,-40\n0.02,0,0,0,0,0,9.81,0,20,-40\n");
+    const std::string before = readAll(in);
+    const CliRun self = caphub("fusion replay --in " + in + " --out " + in);
+    EXPECT_EQ(self.exitCode, 2) << self.output;
+    EXPECT_THAT(self.output, HasSubstr("is the --in file"));
+    EXPECT_EQ(readAll(in), before);
+    const std::string device = deviceNode();
+    const CliRun full = caphub("fusion replay --in " + in + " --out " + device);
+    EXPECT_EQ(full.exitCode, 2) << full.output;
+    EXPECT_THAT(full.output, HasSubstr("is a device"));
+    EXPECT_TRUE(isCharDevice(device));
+    const std::string out = path("estimate.csv");
+    const CliRun ok = caphub("fusion replay --in " + in + " --out " + out);
+    EXPECT_EQ(ok.exitCode, 0) << ok.output;
+    EXPECT_THAT(readAll(out), ::testing::StartsWith("t,qw,qx,qy,qz\n0.000000,"));
+    EXPECT_FALSE(fs::exists(out + ".part"));
 }
 
 // A pose record dated days after the others (a damaged file's, its checksum intact): the export
