@@ -1,7 +1,7 @@
 #include "firmware/cli/number_checks.h"
 
-#include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <string>
 

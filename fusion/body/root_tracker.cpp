@@ -87,6 +87,18 @@ double distanceToHull(const Vec2d& p, std::array<Vec2d, 6> pts, std::size_t n) {
 
 constexpr int kSeatPoint = 6;
 
+// The lowest of the feet's six points (heel, ball, toe tip of each).
+int lowestPoint(const std::array<Vec3d, 6>& points) {
+    int lowest = 0;
+    for (int k = 1; k < 6; ++k) {
+        if (points[static_cast<std::size_t>(k)].y() <
+            points[static_cast<std::size_t>(lowest)].y()) {
+            lowest = k;
+        }
+    }
+    return lowest;
+}
+
 bool isSeat(int point) {
     return point >= kSeatPoint;
 }
@@ -271,12 +283,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         if (next.y() + minY <= takeoffLevelM_ && comVerticalVelocity_ <= 0) {
             // Landing: the lowest foot point touches the level it took off from and becomes
             // the anchor.
-            int lowest = 0;
-            for (int k = 1; k < 6; ++k) {
-                if (r[static_cast<std::size_t>(k)].y() < r[static_cast<std::size_t>(lowest)].y()) {
-                    lowest = k;
-                }
-            }
+            const int lowest = lowestPoint(r);
             next.y() = takeoffLevelM_ - minY;
             point_ = lowest;
             phase_ = lowest < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
@@ -430,12 +437,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     if (point_ < 0) {
         // Nothing held (a skeleton whose points came out not finite left none qualifying): the
         // lowest point, as at a landing.
-        point_ = 0;
-        for (int k = 1; k < 6; ++k) {
-            if (r[static_cast<std::size_t>(k)].y() < r[static_cast<std::size_t>(point_)].y()) {
-                point_ = k;
-            }
-        }
+        point_ = lowestPoint(r);
     }
     const Vec3d here = placeOn(point_);
     // The qualifying point among [from, to] predicted to move least, and its speed.
