@@ -18,6 +18,7 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/number_checks.h"
+#include "firmware/export/output_file.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/sensor_calibration_steps.h"
 #include "fusion/calibration/accel_six_position.h"
@@ -277,6 +278,13 @@ int calibrate(Kind kind, const CalibrateOptions& o) {
                    o.profile);
         return kExitUsage;
     }
+    // Where the result goes is settled before the sensors are moved through their poses: a
+    // regular file or a new one in a folder that exists, not the board file.
+    const auto target = exporter::claimOutputTarget(o.file, "--file", {o.board});
+    if (!target) {
+        fmt::print(stderr, "caphub calibrate: {}\n", target.error().message);
+        return kExitUsage;
+    }
     // An existing file is updated: the other kinds and other sensors' entries stay.
     CalibrationSet set;
     std::error_code ec;
@@ -320,7 +328,7 @@ int calibrate(Kind kind, const CalibrateOptions& o) {
                    o.file);
         return kExitRuntime;
     }
-    if (auto w = writeCalibrationFile(o.file, set); !w) {
+    if (auto w = writeCalibrationFile(*target, set); !w) {
         fmt::print(stderr, "caphub calibrate: {}\n", w.error().message);
         return kExitRuntime;
     }
@@ -356,8 +364,10 @@ void addCalibrateCommand(CLI::App& app, int& exitCode) {
             ->capture_default_str();
         sub->add_option("-f,--file", o->file, "Calibration file to update (created when missing)")
             ->capture_default_str();
+        // Every sample is held until the fit: ten minutes of a 17-sensor suit is 100k samples
+        // a sensor, and no calibration needs more (the defaults are 5-62 s).
         sub->add_option("-d,--duration", o->durationS, "Seconds to measure (0: the default)")
-            ->check(finiteNonNegative());
+            ->check(zeroOrRange(1.0, 600.0));
         sub->add_option("--profile", o->profile,
                         "Virtual suit: sensor errors: ideal, typical, harsh")
             ->capture_default_str();

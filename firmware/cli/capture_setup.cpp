@@ -30,8 +30,9 @@ extern "C" void onStopSignal(int) {
 }  // namespace
 
 void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o) {
+    // 1e300 overflowed the simulated clock: its workers spun with no sample taken.
     cmd.add_option("--speed", o.speed, "Virtual suit only: simulated seconds per real second")
-        ->check(finitePositive())
+        ->check(finiteRange(1e-3, 1e6))
         ->capture_default_str();
     cmd.add_option("--bvh", o.bvh,
                    "Virtual suit: the motion (BVH); default: the shipped walking clip");

@@ -5,7 +5,7 @@
 // scored pose is bad input (exit 2), never a table of zeros.
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
+#include <optional>
 #include <vector>
 
 #include <fmt/format.h>
@@ -19,6 +19,7 @@
 #include "firmware/cli/smooth_heading_option.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/evaluation.h"
+#include "firmware/export/output_file.h"
 #include "hal/core/input_file.h"
 
 namespace caphub::firmware {
@@ -248,6 +249,26 @@ int evaluate(const EvaluateCliOptions& c) {
             return kExitUsage;
         }
     }
+    // Where the scores go is checked before the first run too: the folder exists, and it is
+    // not a file the evaluation reads.
+    std::optional<fs::path> jsonTarget;
+    if (!c.json.empty()) {
+        std::vector<std::string> inputs = c.bvh;
+        for (const std::uint64_t seed : seeds) {
+            std::string path = c.calibration;
+            if (const auto at = path.find("{seed}"); at != std::string::npos) {
+                path.replace(at, 6, std::to_string(seed));
+            }
+            inputs.push_back(path);
+        }
+        inputs.insert(inputs.end(), {c.suit.board, c.suit.map, c.magState});
+        auto target = exporter::claimOutputTarget(c.json, "--json", inputs);
+        if (!target) {
+            fmt::print(stderr, "caphub evaluate: {}\n", target.error().message);
+            return kExitUsage;
+        }
+        jsonTarget = *target;
+    }
 
     std::vector<EvaluateResult> results;
     std::vector<std::uint64_t> seedOf;
@@ -296,12 +317,9 @@ int evaluate(const EvaluateCliOptions& c) {
     if (c.reprocessSmooth) {
         fmt::print("{}", smoothTable(results, seedOf));
     }
-    if (!c.json.empty()) {
-        std::ofstream out(c.json, std::ios::trunc);
-        out << evaluationJson(results, b, o);
-        out.close();
-        if (!out) {
-            fmt::print(stderr, "caphub evaluate: --json: cannot write '{}'\n", c.json);
+    if (jsonTarget) {
+        if (auto w = exporter::writeWholeFile(*jsonTarget, evaluationJson(results, b, o)); !w) {
+            fmt::print(stderr, "caphub evaluate: --json: {}\n", w.error().message);
             return kExitRuntime;
         }
         fmt::print("scores written to {}\n", c.json);

@@ -1,6 +1,8 @@
 // caphub fusion replay: runs the orientation filter over recorded IMU data in the BROAD layout,
 // writes the estimate, and scores it against the ground truth when the file has one.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -15,7 +17,6 @@
 #include "firmware/cli/number_checks.h"
 #include "firmware/cli/smooth_heading_option.h"
 #include "firmware/export/output_file.h"
-#include "firmware/export/partial_output.h"
 #include "firmware/io/broad_csv.h"
 #include "fusion/evaluation.h"
 #include "fusion/smoother.h"
@@ -60,43 +61,42 @@ std::vector<Quatd> smoothedEstimate(const std::vector<fusion::ImuSample>& sample
     return out;
 }
 
+// Why the filter cannot be fed `rateHz` (0: the file's rate) from this file, or empty: a rate
+// above the file's, or one so low that fewer than two of its samples would be fed (1e-9 Hz
+// overflowed the decimation and ran at the file's full rate instead).
+std::string rateProblem(double rateHz, const BroadTrial& t) {
+    if (rateHz <= 0.0) {
+        return {};
+    }
+    if (rateHz > t.rateHz * 1.0001) {
+        return fmt::format("is above the file's rate {:g} Hz", t.rateHz);
+    }
+    if (std::lround(t.rateHz / rateHz) >= static_cast<long>(t.samples.size())) {
+        return fmt::format("feeds the filter fewer than two of the file's {} samples at {:g} Hz",
+                           t.samples.size(), t.rateHz);
+    }
+    return {};
+}
+
+// The decimation of a rate rateProblem accepts.
+int decimationFor(const BroadTrial& t, double rateHz) {
+    return rateHz > 0.0 ? std::max(1, static_cast<int>(std::lround(t.rateHz / rateHz))) : 1;
+}
+
 // The estimate as CSV, written as an export is (docs/exports.md): a regular file only, never
 // the input itself, via PATH.part renamed over it when complete (Ctrl-C leaves the old file).
 Result<void> writeEstimate(const std::string& path, const std::string& input,
                            const BroadTrial& trial, const std::vector<Quatd>& q) {
-    auto target = exporter::regularOutputTarget(path);
+    auto target = exporter::claimOutputTarget(path, "--out", {input});
     if (!target) {
         return target.error();
     }
-    std::error_code ec;
-    if (fs::exists(*target, ec) && fs::equivalent(*target, input, ec)) {
-        return Error{EINVAL, fmt::format("--out '{}' is the --in file", path)};
+    std::string text = "t,qw,qx,qy,qz\n";
+    for (std::size_t i = 0; i < q.size(); ++i) {
+        text += fmt::format("{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", trial.samples[i].tS, q[i].w(),
+                            q[i].x(), q[i].y(), q[i].z());
     }
-    PartialOutput part(target->string() + ".part");
-    {
-        std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(part.path().c_str(), "w"),
-                                                          &std::fclose);
-        if (!f) {
-            return errnoError(-errno, fmt::format("create '{}'", part.path()));
-        }
-        std::string line;
-        bool ok = std::fputs("t,qw,qx,qy,qz\n", f.get()) >= 0;
-        for (std::size_t i = 0; ok && i < q.size(); ++i) {
-            line = fmt::format("{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}\n", trial.samples[i].tS,
-                               q[i].w(), q[i].x(), q[i].y(), q[i].z());
-            ok = std::fwrite(line.data(), 1, line.size(), f.get()) == line.size();
-        }
-        if (!ok || std::fflush(f.get()) != 0 || std::ferror(f.get())) {
-            return errnoError(-errno, fmt::format("write '{}'", part.path()));
-        }
-    }
-    fs::rename(part.path(), *target, ec);
-    if (ec) {
-        return Error{ec.value(), fmt::format("rename '{}' to '{}': {}", part.path(),
-                                             target->string(), ec.message())};
-    }
-    part.published();
-    return {};
+    return exporter::writeWholeFile(*target, text);
 }
 
 // "rejected 1 gyroscope sample and 2 magnetometer samples (...)", or empty when none was.
@@ -150,17 +150,11 @@ int runReplay(const FusionReplayOptions& o) {
             fmt::print(stderr, "caphub fusion replay: {}\n", trial.error().message);
             return kExitUsage;
         }
-        int decimation = 1;
-        if (o.rateHz > 0.0) {
-            if (o.rateHz > trial->rateHz * 1.0001) {
-                fmt::print(stderr,
-                           "caphub fusion replay: --rate-hz {:g} is above the file's rate {:g} "
-                           "Hz ({})\n",
-                           o.rateHz, trial->rateHz, in);
-                return kExitUsage;
-            }
-            decimation = std::max(1, static_cast<int>(std::lround(trial->rateHz / o.rateHz)));
+        if (const std::string bad = rateProblem(o.rateHz, *trial); !bad.empty()) {
+            fmt::print(stderr, "caphub fusion replay: --rate-hz {:g} {} ({})\n", o.rateHz, bad, in);
+            return kExitUsage;
         }
+        const int decimation = decimationFor(*trial, o.rateHz);
         const double fedHz = trial->rateHz / decimation;
         fusion::FilterParams params;
         params.gyrRateHz = params.accRateHz = params.magRateHz = fedHz;
@@ -189,9 +183,16 @@ int runReplay(const FusionReplayOptions& o) {
                 return exitCodeForCreate(r.error().code);
             }
         }
-        if (trial->hasTruth()) {
-            rows.push_back({trial->name,
-                            fusion::broadMetric(estimate, trial->truth, trial->movement),
+        const fusion::BroadErrors errors =
+            fusion::broadMetric(estimate, trial->truth, trial->movement);
+        if (trial->hasTruth() && errors.samples == 0) {
+            // Scored over no row, the errors would read 0.000: a perfect filter.
+            fmt::print(stderr,
+                       "caphub fusion replay: {} has no row in movement with the optical truth "
+                       "seen: not scored\n",
+                       in);
+        } else if (trial->hasTruth()) {
+            rows.push_back({trial->name, errors,
                             o.smooth ? fusion::broadMetric(smoothed, trial->truth, trial->movement)
                                      : fusion::BroadErrors{}});
         } else if (o.summary) {
@@ -256,10 +257,6 @@ struct CvTrial {
     std::string path;
 };
 
-int decimationFor(const BroadTrial& t, double rateHz) {
-    return rateHz > 0.0 ? std::max(1, static_cast<int>(std::lround(t.rateHz / rateHz))) : 1;
-}
-
 fusion::BroadErrors scoreRun(const CvTrial& t, double rateHz, fusion::FilterVariant v,
                              const fusion::FilterParams& p) {
     const auto est =
@@ -292,12 +289,17 @@ int runCv(const CvOptions& o) {
             fmt::print(stderr, "caphub fusion cv: {} has no ground truth: nothing to score\n", in);
             return kExitUsage;
         }
+        // The rows a score counts: the truth scored against itself counts them.
+        if (fusion::broadMetric(trial->truth, trial->truth, trial->movement).samples == 0) {
+            fmt::print(stderr,
+                       "caphub fusion cv: {} has no row in movement with the optical truth "
+                       "seen: nothing to score\n",
+                       in);
+            return kExitUsage;
+        }
         for (double r : o.ratesHz) {
-            if (r > trial->rateHz * 1.0001) {
-                fmt::print(stderr,
-                           "caphub fusion cv: --rate-hz {:g} is above the file's rate {:g} Hz "
-                           "({})\n",
-                           r, trial->rateHz, in);
+            if (const std::string bad = rateProblem(r, *trial); !bad.empty()) {
+                fmt::print(stderr, "caphub fusion cv: --rate-hz {:g} {} ({})\n", r, bad, in);
                 return kExitUsage;
             }
         }

@@ -41,6 +41,25 @@ CLI::Validator finiteRange(double min, double max) {
     return finiteCheck(fmt::format("FINITE in [{} - {}]", min, max), min, false, max);
 }
 
+CLI::Validator zeroOrRange(double min, double max) {
+    const CLI::Validator range = finiteRange(min, max);
+    return CLI::Validator(
+        [range, min, max](std::string& input) -> std::string {
+            std::string copy = input;
+            const std::string why = range(copy);
+            char* end = nullptr;
+            const double v = std::strtod(input.c_str(), &end);
+            const bool finite = !input.empty() && *end == '\0' && std::isfinite(v);
+            if (why.empty() || (finite && v == 0.0)) {
+                return {};
+            }
+            // Not a number, or not a finite one: said as every other option says it.
+            return finite ? fmt::format("Value {} must be 0 or from {} to {}", input, min, max)
+                          : why;
+        },
+        fmt::format("0 or FINITE in [{} - {}]", min, max));
+}
+
 CLI::Validator finitePositive() {
     return finiteCheck("POSITIVE", 0.0, true, std::numeric_limits<double>::max());
 }

@@ -10,6 +10,14 @@ namespace caphub::firmware {
 
 // A finite number within [min, max].
 CLI::Validator finiteRange(double min, double max);
+// A capture's or a service's -d: 1 ms (a shorter one rounds to nothing) to three years (the
+// nanosecond clock holds 292).
+inline constexpr double kMinDurationS = 1e-3;
+inline constexpr double kMaxDurationS = 1e8;
+
+// 0 (what the option's help says it means), or a finite number within [min, max]: a duration of
+// 1e-10 s rounded to 0 ns, which means "until Ctrl-C".
+CLI::Validator zeroOrRange(double min, double max);
 // A finite number above zero.
 CLI::Validator finitePositive();
 // A finite number at or above zero.

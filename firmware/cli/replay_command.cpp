@@ -138,7 +138,7 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
         "replay", "Play a recording's poses back through the preview (PNG, framebuffer, MJPEG)");
     cmd->add_option("recording", o->recording, "The recording (.cap)")->required();
     cmd->add_option("--speed", o->speed, "Recording seconds per real second (0: no pacing)")
-        ->check(finiteNonNegative())
+        ->check(zeroOrRange(1e-3, 1e6))
         ->capture_default_str();
     cmd->add_option("--fps", o->fps, "Frames per second of recording time")
         ->check(finitePositive())

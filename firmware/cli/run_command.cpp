@@ -310,7 +310,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
         ->capture_default_str();
     cmd->add_option("-d,--duration", o->durationS, "Seconds to capture (0: until Ctrl-C)")
-        ->check(finiteNonNegative())
+        ->check(zeroOrRange(kMinDurationS, kMaxDurationS))
         ->capture_default_str();
     cmd->add_option("-o,--out", o->out,
                     "Folder for a timestamped recording (default: the board's outputs)");

@@ -54,6 +54,8 @@ struct SensorStats {
     }
 };
 
+constexpr double kMinSamples = 20.0;
+
 int selftest(const SelftestOptions& o) {
     const auto loaded = loadCommandBoard(o.board);
     if (!loaded) {
@@ -61,6 +63,17 @@ int selftest(const SelftestOptions& o) {
     }
     const board::Board& b = *loaded;
     const bool sim = board::allBusesSimulated(b);
+    // The rate is judged within 5 % (one sample in 20): the slowest sensor must give 20.
+    for (const auto& sc : b.sensors) {
+        if (o.seconds * sc.achievedOdrHz < kMinSamples) {
+            fmt::print(stderr,
+                       "caphub selftest: --seconds {:g}: sensor {} at {:g} Hz gives fewer than "
+                       "{:g} samples to judge its rate by; give at least {:g} s\n",
+                       o.seconds, sc.name, sc.achievedOdrHz, kMinSamples,
+                       std::ceil(kMinSamples / sc.achievedOdrHz * 10.0) / 10.0);
+            return kExitUsage;
+        }
+    }
     fmt::print("caphub selftest: {} sensors on {} buses of '{}' ({}), {:g} s of samples\n\n",
                b.sensors.size(), b.buses.size(), b.name, sim ? "virtual suit" : "hub buses",
                o.seconds);
@@ -201,7 +214,7 @@ void addSelftestCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
         ->capture_default_str();
     cmd->add_option("--seconds", o->seconds, "Seconds of samples to check")
-        ->check(finitePositive())
+        ->check(finiteRange(0.0, 3600.0))
         ->capture_default_str();
     cmd->callback([&exitCode, o] { exitCode = selftest(*o); });
 }

@@ -276,7 +276,7 @@ void addServeCommand(CLI::App& app, int& exitCode) {
     cmd->add_flag("--set-password", o->setPassword,
                   "Read a password from stdin, store its hash in the state folder, and exit");
     cmd->add_option("-d,--duration", o->durationS, "Seconds to run (0: until SIGTERM or Ctrl-C)")
-        ->check(finiteNonNegative())
+        ->check(zeroOrRange(kMinDurationS, kMaxDurationS))
         ->capture_default_str();
     cmd->add_option("--realtime", o->realtime, "SCHED_FIFO priority of the capture threads, 0-99")
         ->check(finiteRange(0, 99));

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include <fmt/format.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include "board/loader.h"
@@ -16,8 +17,11 @@
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
 #include "firmware/cli/suit_options.h"
+#include "firmware/export/output_file.h"
+#include "firmware/export/partial_output.h"
 #include "firmware/io/broad_csv.h"
 #include "firmware/runtime/hub.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware {
 
@@ -62,8 +66,13 @@ double rms(double sum2, std::size_t n) {
 // The ground-truth skeleton of the clip: each segment's orientation (segment -> world) and
 // origin (its proximal joint), skeleton world frame (docs/frames.md), metres.
 Result<void> writeSkeleton(const fs::path& path, const bs::Motion& motion, double rateHz) {
-    gzFile f = gzopen(path.c_str(), path.extension() == ".gz" ? "wb6" : "wT");
+    auto fd = createOutputFd(path);
+    if (!fd) {
+        return fd.error();
+    }
+    gzFile f = gzdopen(*fd, path.extension() == ".gz" ? "wb6" : "wT");
     if (f == nullptr) {
+        ::close(*fd);
         return Error{EIO, fmt::format("create '{}': failed", path.string())};
     }
     std::string out = fmt::format(
@@ -109,6 +118,23 @@ Result<void> writeSkeleton(const fs::path& path, const bs::Motion& motion, doubl
     if (!ok) {
         return Error{EIO, fmt::format("write '{}': failed", path.string())};
     }
+    return {};
+}
+
+// One sensor's stream, written as a whole: into FILE.part, renamed over FILE when complete.
+Result<void> writeStream(const fs::path& file, const BroadTrial& trial) {
+    PartialOutput part(file.string() + ".part");
+    // The part keeps the target's extension after ".part": written compressed as the target is.
+    if (auto w = writeBroadCsv(part.path(), trial, file.extension() == ".gz"); !w) {
+        return w;
+    }
+    std::error_code ec;
+    fs::rename(part.path(), file, ec);
+    if (ec) {
+        return Error{ec.value(), fmt::format("rename '{}' to '{}': {}", part.path(), file.string(),
+                                             ec.message())};
+    }
+    part.published();
     return {};
 }
 
@@ -179,6 +205,43 @@ int sim(const SimOptions& o) {
         calibrations = calibrationsFor(b, *set, nullptr);
     }
 
+    // Where the streams go, settled before the simulation: each file regular or new, none of
+    // the files the simulation reads.
+    const fs::path out =
+        o.out.empty() ? fs::path(o.all ? "sim-out" : "sim.csv.gz") : fs::path(o.out);
+    std::error_code ec;
+    if (o.all || out.has_parent_path()) {
+        const fs::path folder = o.all ? out : out.parent_path();
+        fs::create_directories(folder, ec);
+        if (ec || !fs::is_directory(folder)) {
+            fmt::print(stderr, "caphub sim: cannot create the folder '{}': {}\n", folder.string(),
+                       ec ? ec.message() : "a file has the name");
+            return kExitUsage;
+        }
+    }
+    const std::vector<std::string> inputs{clipOptions.bvh.string(), o.suit.map, o.suit.board,
+                                          o.calibration};
+    std::vector<fs::path> files;
+    for (int i : wanted) {
+        const std::string name =
+            o.all ? (out / (b.sensors[static_cast<std::size_t>(i)].name + ".csv.gz")).string()
+                  : out.string();
+        auto target = exporter::claimOutputTarget(name, "-o", inputs);
+        if (!target) {
+            fmt::print(stderr, "caphub sim: {}\n", target.error().message);
+            return kExitUsage;
+        }
+        files.push_back(*target);
+    }
+    const fs::path skeletonFile = out / "skeleton.csv.gz";
+    if (o.all) {
+        if (auto target = exporter::claimOutputTarget(skeletonFile.string(), "-o", inputs);
+            !target) {
+            fmt::print(stderr, "caphub sim: {}\n", target.error().message);
+            return kExitUsage;
+        }
+    }
+
     std::vector<int> streamOf(b.sensors.size(), -1);
     std::vector<SensorStream> streams;
     for (int i : wanted) {
@@ -215,24 +278,24 @@ int sim(const SimOptions& o) {
         const bs::ImuSignals truth = bs::idealSignals(seg, st.placement, env);
         const Quatd qWorldSensor = seg.qWorldSegment * st.placement.mounting;
 
-        fusion::ImuSample out;
-        out.tS = static_cast<double>(tNs) * 1e-9;
-        out.gyrRadS = s.sample.gyrRadps.cast<double>();
-        out.accMps2 = s.sample.accMps2.cast<double>();
-        out.magUt = s.sample.magUt.cast<double>();
+        fusion::ImuSample row;
+        row.tS = static_cast<double>(tNs) * 1e-9;
+        row.gyrRadS = s.sample.gyrRadps.cast<double>();
+        row.accMps2 = s.sample.accMps2.cast<double>();
+        row.magUt = s.sample.magUt.cast<double>();
         if (const auto& cal = calibrations[static_cast<std::size_t>(s.sensor)]) {
-            out = cal->apply(out);
+            row = cal->apply(row);
         }
         if ((s.sample.flags & hal::ImuSample::kMagFresh) != 0) {
-            st.lastMagUt = out.magUt;
+            st.lastMagUt = row.magUt;
             st.haveMag = true;
             st.magErr2 += (st.lastMagUt - truth.magUt).squaredNorm();
             ++st.magCount;
         }
         // Between magnetometer readings a row repeats the last one (BROAD rows all carry a
         // field); rows before the first reading carry zeros.
-        out.magUt = st.haveMag ? st.lastMagUt : Vec3d::Zero();
-        st.trial.samples.push_back(out);
+        row.magUt = st.haveMag ? st.lastMagUt : Vec3d::Zero();
+        st.trial.samples.push_back(row);
         st.trial.truth.push_back(qEnuWorld * qWorldSensor);
         const Vec3d accelWorld = qWorldSensor * truth.accelMps2 + gravityWorld;
         st.trial.movement.push_back(truth.gyroRadS.norm() > kMovingRadS ||
@@ -241,8 +304,8 @@ int sim(const SimOptions& o) {
             0) {
             ++st.saturated;
         }
-        st.gyroErr2 += (out.gyrRadS - truth.gyroRadS).squaredNorm();
-        st.accelErr2 += (out.accMps2 - truth.accelMps2).squaredNorm();
+        st.gyroErr2 += (row.gyrRadS - truth.gyroRadS).squaredNorm();
+        st.accelErr2 += (row.accMps2 - truth.accelMps2).squaredNorm();
     };
 
     CallbackStage collect(onSample, [&events](const RuntimeEvent&) { ++events; });
@@ -252,19 +315,6 @@ int sim(const SimOptions& o) {
     const double wallS =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
     const double simS = static_cast<double>(motion.durationNs()) * 1e-9;
-
-    std::error_code ec;
-    const fs::path out =
-        o.out.empty() ? fs::path(o.all ? "sim-out" : "sim.csv.gz") : fs::path(o.out);
-    if (o.all) {
-        fs::create_directories(out, ec);
-        if (ec) {
-            fmt::print(stderr, "caphub sim: cannot create '{}': {}\n", out.string(), ec.message());
-            return kExitRuntime;
-        }
-    } else if (out.has_parent_path()) {
-        fs::create_directories(out.parent_path(), ec);
-    }
 
     fmt::print(
         "caphub sim: {} ({:.2f} s, {} frames) on board '{}', profile {}, seed {}, straps {:g} "
@@ -276,10 +326,11 @@ int sim(const SimOptions& o) {
                b.sensors.size(), samples, events, wallS, wallS > 0 ? simS / wallS : 0.0);
     fmt::print("{:<11} {:<13} {:>7} {:>8} {:>10} {:>10} {:>9} {:>5}  {}\n", "sensor", "segment",
                "rows", "rate Hz", "gyro dps", "acc m/s2", "mag uT", "sat", "file");
-    for (SensorStream& st : streams) {
+    for (std::size_t k = 0; k < streams.size(); ++k) {
+        SensorStream& st = streams[k];
         const auto& sc = b.sensors[static_cast<std::size_t>(st.sensor)];
-        const fs::path file = o.all ? out / (sc.name + ".csv.gz") : out;
-        if (auto w = writeBroadCsv(file, st.trial); !w) {
+        const fs::path& file = files[k];
+        if (auto w = writeStream(file, st.trial); !w) {
             fmt::print(stderr, "caphub sim: {}\n", w.error().message);
             return kExitRuntime;
         }
@@ -297,7 +348,7 @@ int sim(const SimOptions& o) {
         for (const auto& sc : b.sensors) {
             rateHz = std::max(rateHz, sc.achievedOdrHz);
         }
-        const fs::path skeleton = out / "skeleton.csv.gz";
+        const fs::path& skeleton = skeletonFile;
         if (auto w = writeSkeleton(skeleton, motion, rateHz); !w) {
             fmt::print(stderr, "caphub sim: {}\n", w.error().message);
             return kExitRuntime;

@@ -4,8 +4,12 @@
 #include <utility>
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+#include "firmware/export/partial_output.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware::exporter {
 
@@ -13,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr const char* kRegularOnly = ": an export writes regular files only";
+constexpr const char* kRegularOnly = ": only a regular file is written";
 
 // What a file of this mode is, for a person; empty for a regular file.
 std::string kindOf(mode_t mode) {
@@ -69,20 +73,60 @@ Result<fs::path> regularOutputTarget(const std::string& path) {
     return target;
 }
 
+Result<fs::path> claimOutputTarget(const std::string& path, std::string_view option,
+                                   const std::vector<std::string>& inputs) {
+    auto target = regularOutputTarget(path);
+    if (!target) {
+        return Error{target.error().code, fmt::format("{}: {}", option, target.error().message)};
+    }
+    std::error_code ec;
+    if (fs::exists(*target, ec)) {
+        for (const std::string& input : inputs) {
+            if (!input.empty() && fs::equivalent(*target, input, ec)) {
+                return Error{EINVAL, fmt::format("{} '{}' is the input '{}': it is read, never "
+                                                 "replaced",
+                                                 option, path, input)};
+            }
+        }
+    }
+    const fs::path folder = target->has_parent_path() ? target->parent_path() : fs::path(".");
+    if (!fs::is_directory(folder, ec)) {
+        return Error{ENOENT, fmt::format("{} '{}': the folder '{}' does not exist", option, path,
+                                         folder.string())};
+    }
+    if (::access(folder.c_str(), W_OK) != 0) {
+        return errnoError(errno,
+                          fmt::format("{} '{}': the folder '{}'", option, path, folder.string()));
+    }
+    return target;
+}
+
+Result<void> writeWholeFile(const fs::path& target, std::string_view text) {
+    PartialOutput part(target.string() + ".part");
+    auto file = OutputFile::open(part.path());
+    if (!file) {
+        return file.error();
+    }
+    file->write(text);
+    if (auto closed = file->close(); !closed) {
+        return closed.error();
+    }
+    std::error_code ec;
+    fs::rename(part.path(), target, ec);
+    if (ec) {
+        return Error{ec.value(), fmt::format("rename '{}' to '{}': {}", part.path(),
+                                             target.string(), ec.message())};
+    }
+    part.published();
+    return {};
+}
+
 Result<OutputFile> OutputFile::open(const std::string& path) {
-    // O_NONBLOCK: opening a FIFO that has the name fails at once instead of waiting for a reader.
-    const int fd = ::open(path.c_str(),
-                          O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC, 0644);
-    if (fd < 0) {
-        return errnoError(errno, "create '" + path + "'");
+    auto created = createOutputFd(path);
+    if (!created) {
+        return Error{created.error().code, created.error().message + kRegularOnly};
     }
-    struct stat st {};
-    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        ::close(fd);
-        return Error{EINVAL, "create '" + path + "': '" + path + "' is " + kindOf(st.st_mode) +
-                                 kRegularOnly};
-    }
-    (void)::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+    const int fd = *created;
     std::FILE* f = ::fdopen(fd, "wb");
     if (f == nullptr) {
         const int err = errno;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "hal/core/error.h"
 
@@ -17,8 +18,19 @@ namespace caphub::firmware::exporter {
 // exist yet; for a symbolic link, the regular file it names (the link stays a link). Anything
 // else is refused with what it is: "'P' is a directory", "'P' is a device", "'P' is a FIFO
 // (named pipe)", "'P' is a socket", "'L' is a symbolic link that names 'P', which does not
-// exist", each followed by ": an export writes regular files only".
+// exist", each followed by ": only a regular file is written".
 Result<std::filesystem::path> regularOutputTarget(const std::string& path);
+
+// Where a command that reads `inputs` may write the file its option `option` (e.g. "--json")
+// names, checked before the command's work starts so that a long run does not end in "cannot
+// write": regularOutputTarget's target, which is none of `inputs` under any name (a command never
+// replaces what it reads) and whose folder exists.
+Result<std::filesystem::path> claimOutputTarget(const std::string& path, std::string_view option,
+                                                const std::vector<std::string>& inputs);
+
+// Writes `text` to `target` (a claimOutputTarget) as a whole: into TARGET.part, renamed over
+// the target when complete; a failure or Ctrl-C leaves the target as it was.
+Result<void> writeWholeFile(const std::filesystem::path& target, std::string_view text);
 
 class OutputFile {
 public:

@@ -15,6 +15,7 @@
 #include <zlib.h>
 
 #include "hal/core/input_file.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware {
 
@@ -285,10 +286,18 @@ Result<BroadTrial> readBroadCsv(const std::filesystem::path& path) {
 }
 
 Result<void> writeBroadCsv(const std::filesystem::path& path, const BroadTrial& trial) {
-    const bool gz = path.extension() == ".gz";
+    return writeBroadCsv(path, trial, path.extension() == ".gz");
+}
+
+Result<void> writeBroadCsv(const std::filesystem::path& path, const BroadTrial& trial, bool gz) {
+    auto fd = createOutputFd(path);
+    if (!fd) {
+        return fd.error();
+    }
     errno = 0;
-    GzFile f(gzopen(path.c_str(), gz ? "wb6" : "wT"));
+    GzFile f(gzdopen(*fd, gz ? "wb6" : "wT"));
     if (!f) {
+        ::close(*fd);
         return errnoError(errno != 0 ? -errno : -EIO, fmt::format("create '{}'", path.string()));
     }
     const bool truth = trial.hasTruth();

@@ -29,7 +29,9 @@ struct BroadTrial {
 Result<BroadTrial> readBroadCsv(const std::filesystem::path& path);
 
 // Writes the layout readBroadCsv reads (with truth columns when the trial has them); gzip'd when
-// the path ends in .gz.
+// `gzip` says so (by default: when the path ends in .gz). Only over a regular file or where
+// none is: never through a symbolic link, never into a FIFO or a device.
 Result<void> writeBroadCsv(const std::filesystem::path& path, const BroadTrial& trial);
+Result<void> writeBroadCsv(const std::filesystem::path& path, const BroadTrial& trial, bool gzip);
 
 }  // namespace caphub::firmware

@@ -1,0 +1,189 @@
+// Faults found by trying evaluate, sim, calibrate, run, selftest and fusion replay as an
+// attacker would: an output that named an input replaced it, an output into a FIFO hung, one into
+// a missing folder failed only after the work, and numbers the commands took silently (a
+// duration of 1e-10 s ran until Ctrl-C, a speed of 1e300 spun, 1e-9 Hz ran at the full rate).
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "tests/firmware/cli_run.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+using caphub::testing::caphub;
+using caphub::testing::CliRun;
+using caphub::testing::shell;
+
+// A folder of this process's own (ctest runs the tests in parallel processes).
+const std::string& dir() {
+    static const std::string d = [] {
+        const std::string p =
+            ::testing::TempDir() + "caphub_output_claims_" + std::to_string(getpid());
+        fs::remove_all(p);
+        fs::create_directories(p);
+        return p;
+    }();
+    return d;
+}
+
+std::string path(const std::string& name) {
+    return dir() + "/" + name;
+}
+
+std::string readAll(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+// A copy of a short clip of the tree's, so that a regression overwrites nothing of the tree's.
+const std::string& clip() {
+    static const std::string p = [] {
+        const std::string f = path("clip.bvh");
+        fs::copy_file(CAPHUB_TEST_DATA_DIR "/bvh/cmu_16_36_run_daz.bvh", f,
+                      fs::copy_options::overwrite_existing);
+        return f;
+    }();
+    return p;
+}
+
+std::string fifo(const std::string& name) {
+    const std::string p = path(name);
+    fs::remove(p);
+    EXPECT_EQ(::mkfifo(p.c_str(), 0644), 0);
+    return p;
+}
+
+bool isFifo(const std::string& p) {
+    struct stat st {};
+    return ::lstat(p.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+}
+
+// The command under a timeout: a regression that hangs fails the test instead of the suite.
+CliRun bounded(const std::string& args) {
+    return shell("timeout -k 3 60 " + std::string(CAPHUB_BINARY) + " " + args);
+}
+
+TEST(EvaluateOutput, TheJsonIsNeverAnInputAndIsCheckedBeforeTheRun) {
+    const std::string before = readAll(clip());
+    const CliRun self = bounded("evaluate --bvh " + clip() + " --json " + clip());
+    EXPECT_EQ(self.exitCode, 2) << self.output;
+    EXPECT_THAT(self.output, HasSubstr("is the input"));
+    EXPECT_EQ(readAll(clip()), before);
+    // Refused before the clip is played: no table was printed.
+    const CliRun missing =
+        bounded("evaluate --bvh " + clip() + " --json " + path("no-folder/scores.json"));
+    EXPECT_EQ(missing.exitCode, 2) << missing.output;
+    EXPECT_THAT(missing.output, HasSubstr("the folder '" + path("no-folder") + "' does not exist"));
+    EXPECT_THAT(missing.output, ::testing::Not(HasSubstr("deg")));
+    const std::string pipe = fifo("scores.fifo");
+    const CliRun intoFifo = bounded("evaluate --bvh " + clip() + " --json " + pipe);
+    EXPECT_EQ(intoFifo.exitCode, 2) << intoFifo.output;
+    EXPECT_THAT(intoFifo.output, HasSubstr("is a FIFO"));
+    EXPECT_TRUE(isFifo(pipe));
+}
+
+TEST(SimOutput, AStreamIsNeverAnInputNorWrittenIntoAFifo) {
+    const std::string before = readAll(clip());
+    const CliRun self = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + clip());
+    EXPECT_EQ(self.exitCode, 2) << self.output;
+    EXPECT_THAT(self.output, HasSubstr("is the input"));
+    EXPECT_EQ(readAll(clip()), before);
+    const std::string pipe = fifo("pelvis.fifo");
+    const CliRun intoFifo = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + pipe);
+    EXPECT_EQ(intoFifo.exitCode, 2) << intoFifo.output;
+    EXPECT_TRUE(isFifo(pipe));
+    // In --all's folder a FIFO with a stream's name stops the command before the simulation,
+    // with nothing written.
+    fs::create_directories(path("all"));
+    const std::string skeleton = fifo("all/skeleton.csv.gz");
+    const CliRun all = bounded("sim --all --bvh " + clip() + " -o " + path("all"));
+    EXPECT_EQ(all.exitCode, 2) << all.output;
+    EXPECT_THAT(all.output, HasSubstr("skeleton.csv.gz' is a FIFO"));
+    EXPECT_FALSE(fs::exists(path("all/pelvis.csv.gz")));
+    EXPECT_TRUE(isFifo(skeleton));
+    // And a stream that can be written is, whole, with no part left beside it.
+    const CliRun ok = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + path("p.csv.gz"));
+    ASSERT_EQ(ok.exitCode, 0) << ok.output;
+    EXPECT_GT(fs::file_size(path("p.csv.gz")), 1000u);
+    EXPECT_FALSE(fs::exists(path("p.csv.gz.part")));
+}
+
+TEST(CalibrateOutput, TheFileIsCheckedBeforeTheSensorsAreMoved) {
+    const std::string pipe = fifo("cal.fifo");
+    const CliRun intoFifo = bounded("calibrate gyro --file " + pipe);
+    EXPECT_EQ(intoFifo.exitCode, 2) << intoFifo.output;
+    EXPECT_THAT(intoFifo.output, HasSubstr("is a FIFO"));
+    EXPECT_THAT(intoFifo.output, ::testing::Not(HasSubstr("scripted")));
+    const CliRun missing = bounded("calibrate gyro --file " + path("no-folder/cal.toml"));
+    EXPECT_EQ(missing.exitCode, 2) << missing.output;
+    EXPECT_THAT(missing.output, HasSubstr("does not exist"));
+    const CliRun ok = bounded("calibrate gyro --file " + path("cal.toml"));
+    ASSERT_EQ(ok.exitCode, 0) << ok.output;
+    EXPECT_THAT(readAll(path("cal.toml")), HasSubstr("gyro_bias_rad_s"));
+    EXPECT_FALSE(fs::exists(path("cal.toml.part")));
+}
+
+TEST(NumberOptions, ValuesThatRoundToNothingOrOverflowAreRefused) {
+    const struct {
+        const char* args;
+        const char* says;
+    } cases[] = {
+        // 1e-10 s rounded to 0 ns: "until Ctrl-C".
+        {"run --board sim-upper10 -d 1e-10 --no-record --no-preview", "must be 0 or from 0.001"},
+        {"serve --board sim-upper10 -d 1e-10", "must be 0 or from 0.001"},
+        // 1e300 overflowed the simulated clock: the workers spun, no sample taken.
+        {"run --board sim-upper10 -d 1 --speed 1e300 --no-record --no-preview",
+         "not in range 0.001 to"},
+        // Every sample is held until the fit.
+        {"calibrate gyro -d 1e6", "must be 0 or from 1 to 600"},
+        // Too short to judge a rate by: every sensor was blamed.
+        {"selftest --seconds 0.001", "give at least 0.2 s"},
+    };
+    for (const auto& c : cases) {
+        const CliRun r = bounded(c.args);
+        EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+        EXPECT_THAT(r.output, HasSubstr(c.says)) << c.args;
+    }
+    const std::string trial = path("trial.csv");
+    std::ofstream(trial) << "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z\n"
+                            "0,0,0,0,0,0,9.81,0,20,-40\n0.01,0,0,0,0,0,9.81,0,20,-40\n"
+                            "0.02,0,0,0,0,0,9.81,0,20,-40\n";
+    // 1e-9 Hz overflowed the decimation and ran at the file's full rate.
+    const CliRun slow = bounded("fusion replay --in " + trial + " --rate-hz 1e-9");
+    EXPECT_EQ(slow.exitCode, 2) << slow.output;
+    EXPECT_THAT(slow.output, HasSubstr("fewer than two of the file's 3 samples"));
+    EXPECT_EQ(bounded("fusion replay --in " + trial + " --rate-hz 50").exitCode, 0);
+}
+
+// A trial whose rows are all at rest (or whose markers were never seen) scored 0.000 deg: a
+// perfect filter, over no row at all.
+TEST(FusionScores, ATrialWithNothingToScoreIsSaidNotScoredAsPerfect) {
+    std::string text =
+        "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,opt_w,opt_x,opt_y,opt_z,"
+        "movement\n";
+    for (int i = 0; i < 50; ++i) {
+        text += std::to_string(i * 0.01) + ",0,0,0,0,0,9.81,0,20,-40,1,0,0,0,0\n";
+    }
+    const std::string still = path("still.csv");
+    std::ofstream(still) << text;
+    const CliRun replay = bounded("fusion replay --in " + still);
+    EXPECT_EQ(replay.exitCode, 0) << replay.output;
+    EXPECT_THAT(replay.output, HasSubstr("has no row in movement"));
+    EXPECT_THAT(replay.output, ::testing::Not(HasSubstr("0.000")));
+    const CliRun cv = bounded("fusion cv --in " + still + " --in " + still + " --in " + still);
+    EXPECT_EQ(cv.exitCode, 2) << cv.output;
+    EXPECT_THAT(cv.output, HasSubstr("nothing to score"));
+}
+
+}  // namespace
