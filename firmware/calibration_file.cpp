@@ -7,10 +7,13 @@
 #include <fstream>
 #include <sstream>
 
+#include <Eigen/SVD>
 #include <fmt/format.h>
 #include <toml++/toml.h>
+#include <unistd.h>
 
 #include "hal/core/input_file.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware {
 
@@ -98,6 +101,44 @@ Result<Eigen::Matrix3d> mat3(const std::string& origin, const toml::node& n,
     return m;
 }
 
+// What a file may say of a sensor: bounds an order of magnitude beyond any MEMS part's
+// datasheet, so that a typing slip or a damaged file (a bias of 1e300) is refused with its line
+// instead of turning every sample it corrects into noise or overflow.
+constexpr double kMaxGyroBiasRadS = 0.5;   // 29 deg/s; parts' zero-rate offsets reach 5 deg/s
+constexpr double kMaxAccOffsetMps2 = 5.0;  // 0.5 g; parts' zero-g offsets reach 0.1 g
+constexpr double kMaxHardIronUt = 5000.0;  // beyond a magnetometer's range (AK09916: 4912 uT)
+// The axes matrices' singular values (a scale): the calibrators refuse 1 +- 0.2.
+constexpr double kMinAxesScale = 0.5;
+constexpr double kMaxAxesScale = 2.0;
+// The soft-iron matrix's: a strong distortion of the field, not a tenfold one.
+constexpr double kMinSoftIronScale = 0.1;
+constexpr double kMaxSoftIronScale = 10.0;
+
+Result<void> withinMagnitude(const std::string& origin, const toml::node& n, const std::string& key,
+                             const Vec3d& v, double max, const char* unit) {
+    if (v.cwiseAbs().maxCoeff() > max) {
+        return at(origin, n,
+                  fmt::format("'{}': {:g} {} is beyond what a sensor has (at most {:g})", key,
+                              v.cwiseAbs().maxCoeff(), unit, max));
+    }
+    return {};
+}
+
+Result<void> withinScale(const std::string& origin, const toml::node& n, const std::string& key,
+                         const Eigen::Matrix3d& m, double min, double max) {
+    if (!(std::abs(m.determinant()) > 1e-9)) {
+        return at(origin, n, fmt::format("'{}': the matrix is singular", key));
+    }
+    const Vec3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues();
+    if (sv.minCoeff() < min || sv.maxCoeff() > max) {
+        return at(origin, n,
+                  fmt::format("'{}': the matrix scales by {:.3g} to {:.3g}; a calibration "
+                              "scales by {:g} to {:g}",
+                              key, sv.minCoeff(), sv.maxCoeff(), min, max));
+    }
+    return {};
+}
+
 Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const std::string& name,
                                               const toml::table& t) {
     fusion::SensorCalibration c;
@@ -109,6 +150,9 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             if (!v) {
                 return v.error();
             }
+            if (auto ok = withinMagnitude(origin, node, full, *v, kMaxGyroBiasRadS, "rad/s"); !ok) {
+                return ok.error();
+            }
             c.gyroBiasRadS = *v;
             c.hasGyro = true;
         } else if (key == "acc_offset_m_s2" || key == "acc_scale") {
@@ -117,8 +161,10 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
                 return v.error();
             }
             if (key == "acc_scale") {
-                if ((v->array() <= 0.0).any()) {
-                    return at(origin, node, fmt::format("'{}': expected positive scales", full));
+                if ((v->array() < kMinAxesScale).any() || (v->array() > kMaxAxesScale).any()) {
+                    return at(origin, node,
+                              fmt::format("'{}': expected scales from {:g} to {:g}", full,
+                                          kMinAxesScale, kMaxAxesScale));
                 }
                 if (t.contains("acc_matrix")) {
                     return at(origin, node,
@@ -126,6 +172,10 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
                 }
                 c.accMatrix = v->cwiseInverse().asDiagonal();
             } else {
+                if (auto ok = withinMagnitude(origin, node, full, *v, kMaxAccOffsetMps2, "m/s^2");
+                    !ok) {
+                    return ok.error();
+                }
                 c.accOffsetMps2 = *v;
             }
             c.hasAccel = true;
@@ -134,8 +184,8 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             if (!m) {
                 return m.error();
             }
-            if (!(std::abs(m->determinant()) > 1e-9)) {
-                return at(origin, node, fmt::format("'{}': the matrix is singular", full));
+            if (auto ok = withinScale(origin, node, full, *m, kMinAxesScale, kMaxAxesScale); !ok) {
+                return ok.error();
             }
             if (key == "acc_matrix") {
                 c.accMatrix = *m;
@@ -149,6 +199,9 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             if (!v) {
                 return v.error();
             }
+            if (auto ok = withinMagnitude(origin, node, full, *v, kMaxHardIronUt, "uT"); !ok) {
+                return ok.error();
+            }
             c.magHardIronUt = *v;
             c.hasMag = true;
         } else if (key == "mag_soft_iron") {
@@ -156,8 +209,9 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             if (!m) {
                 return m.error();
             }
-            if (!(std::abs(m->determinant()) > 1e-9)) {
-                return at(origin, node, fmt::format("'{}': the matrix is singular", full));
+            if (auto ok = withinScale(origin, node, full, *m, kMinSoftIronScale, kMaxSoftIronScale);
+                !ok) {
+                return ok.error();
             }
             c.magSoftIron = *m;
             c.hasMag = true;
@@ -165,6 +219,10 @@ Result<fusion::SensorCalibration> parseSensor(const std::string& origin, const s
             auto v = number(origin, node, full);
             if (!v) {
                 return v.error();
+            }
+            const double max = key == "mag_quality_pct" ? 100.0 : 1.0;
+            if (!(*v >= 0.0 && *v <= max)) {
+                return at(origin, node, fmt::format("'{}': expected 0 to {:g}", full, max));
             }
             (key == "mag_quality_pct" ? c.magQualityPct : c.magCoverage) = *v;
         } else {
@@ -267,16 +325,43 @@ std::string formatCalibration(const CalibrationSet& set) {
     return out;
 }
 
-Result<void> writeCalibrationFile(const std::filesystem::path& path, const CalibrationSet& set) {
+Result<void> writeCalibrationFile(const std::filesystem::path& given, const CalibrationSet& set) {
     const std::string text = formatCalibration(set);
-    std::FILE* f = std::fopen(path.c_str(), "w");
-    if (f == nullptr) {
-        return errnoError(-errno, fmt::format("create '{}'", path.string()));
+    // A symbolic link stays one: the file it names is replaced.
+    std::error_code ec;
+    const std::filesystem::path path = std::filesystem::is_symlink(given, ec)
+                                           ? std::filesystem::weakly_canonical(given, ec)
+                                           : given;
+    // Written whole: into PATH.part (a regular file, never through a link or into a FIFO), renamed
+    // over the file when complete, so that a failed or interrupted write leaves it as it was.
+    const std::filesystem::path part = path.string() + ".part";
+    auto fd = createOutputFd(part);
+    if (!fd) {
+        return fd.error();
     }
-    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-    const int err = errno;
-    if (std::fclose(f) != 0 || !ok) {
-        return errnoError(-(ok ? errno : err), fmt::format("write '{}'", path.string()));
+    std::size_t written = 0;
+    while (written < text.size()) {
+        const ssize_t n = ::write(*fd, text.data() + written, text.size() - written);
+        if (n < 0 && errno == EINTR) {
+            continue;
+        }
+        if (n <= 0) {
+            const int err = n < 0 ? errno : EIO;
+            ::close(*fd);
+            ::unlink(part.c_str());
+            return errnoError(err, fmt::format("write '{}'", part.string()));
+        }
+        written += static_cast<std::size_t>(n);
+    }
+    if (::close(*fd) != 0) {
+        const int err = errno;
+        ::unlink(part.c_str());
+        return errnoError(err, fmt::format("write '{}'", part.string()));
+    }
+    if (::rename(part.c_str(), path.c_str()) != 0) {
+        const int err = errno;
+        ::unlink(part.c_str());
+        return errnoError(err, fmt::format("rename '{}' to '{}'", part.string(), path.string()));
     }
     return {};
 }

@@ -26,6 +26,8 @@ Result<CalibrationSet> readCalibrationFile(const std::filesystem::path& path);
 
 // The text of a calibration file (values with full double precision, so a read-back is exact).
 std::string formatCalibration(const CalibrationSet& set);
+// Written whole: PATH.part renamed over PATH when complete (a failed write leaves the file as it
+// was); a symbolic link stays one, the file it names replaced.
 Result<void> writeCalibrationFile(const std::filesystem::path& path, const CalibrationSet& set);
 
 // The calibration of each board sensor, by name (none where the set has none); the set's names

@@ -18,7 +18,7 @@ CalibrationSet sampleSet() {
     a.accOffsetMps2 = Vec3d(0.05, -0.02, 0.1);
     a.accMatrix << 0.998, 0.01, 0.0, 0.01, 1.002, -0.003, 0.0, -0.003, 0.999;
     a.hasGyroAxes = true;
-    a.gyroMatrix << 1.01, 0.02, 0.0, -0.01, 0.99, 0.01, 0.004, 0.0, 1.0 / 3.0;
+    a.gyroMatrix << 1.01, 0.02, 0.0, -0.01, 0.99, 0.01, 0.004, 0.0, 2.0 / 3.0;
     a.hasMag = true;
     a.magHardIronUt = Vec3d(12.0, -3.5, 40.2);
     a.magSoftIron << 1.01, 0.02, 0.0, 0.02, 0.99, 0.01, 0.0, 0.01, 1.0;
@@ -58,12 +58,12 @@ TEST(CalibrationFile, ReadsBackWhatItWroteExactly) {
 
 TEST(CalibrationFile, ReadsThePerAxisScaleOfEarlierFilesAsADiagonalMatrix) {
     auto r = parseCalibration(
-        "format = 1\n[sensors.a]\nacc_offset_m_s2 = [0.1, 0, 0]\nacc_scale = [2, 4, 0.5]\n",
+        "format = 1\n[sensors.a]\nacc_offset_m_s2 = [0.1, 0, 0]\nacc_scale = [1.25, 2, 0.5]\n",
         "c.toml");
     ASSERT_TRUE(r) << r.error().message;
     const auto& a = r->at("a");
     EXPECT_TRUE(a.hasAccel);
-    EXPECT_EQ(a.accMatrix, Eigen::Matrix3d(Eigen::Vector3d(0.5, 0.25, 2.0).asDiagonal()));
+    EXPECT_EQ(a.accMatrix, Eigen::Matrix3d(Eigen::Vector3d(0.8, 0.5, 2.0).asDiagonal()));
     auto both = parseCalibration(
         "format = 1\n[sensors.a]\nacc_scale = [1, 1, 1]\n"
         "acc_matrix = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\n",
@@ -109,6 +109,41 @@ TEST(CalibrationFile, RefusesASingularMatrix) {
         EXPECT_NE(r.error().message.find("singular"), std::string::npos) << r.error().message;
         EXPECT_NE(r.error().message.find(key), std::string::npos) << r.error().message;
     }
+}
+
+// A damaged file or a typing slip: values no sensor has are refused with their line and key,
+// not applied to every sample (a bias of 1e300 made every corrected sample overflow).
+TEST(CalibrationFile, RefusesValuesNoSensorHas) {
+    const struct {
+        const char* line;
+        const char* says;
+    } cases[] = {
+        {"gyro_bias_rad_s = [1e300, 0, 0]", "beyond what a sensor has"},
+        {"gyro_bias_rad_s = [0, -0.6, 0]", "beyond what a sensor has"},
+        {"acc_offset_m_s2 = [0, 0, 9.81]", "beyond what a sensor has"},
+        {"mag_hard_iron_ut = [0, 1e6, 0]", "beyond what a sensor has"},
+        {"acc_scale = [1, 1, 1e-3]", "expected scales from 0.5 to 2"},
+        {"acc_matrix = [[1e9, 0, 0], [0, 1, 0], [0, 0, 1]]", "the matrix scales by"},
+        {"gyro_matrix = [[0, 1, 0], [-3, 0, 0], [0, 0, 1]]", "the matrix scales by"},
+        {"mag_soft_iron = [[100, 0, 0], [0, 100, 0], [0, 0, 100]]", "the matrix scales by"},
+        {"mag_coverage = 3", "expected 0 to 1"},
+        {"mag_quality_pct = -1", "expected 0 to 100"},
+    };
+    for (const auto& c : cases) {
+        auto r = parseCalibration(fmt::format("format = 1\n[sensors.a]\n{}\n", c.line), "c.toml");
+        ASSERT_FALSE(r) << c.line;
+        EXPECT_NE(r.error().message.find("c.toml:3:"), std::string::npos) << r.error().message;
+        EXPECT_NE(r.error().message.find(c.says), std::string::npos) << r.error().message;
+    }
+    // What the calibrators write (a rotation within the axes matrix included) is read.
+    auto ok = parseCalibration(
+        "format = 1\n[sensors.a]\ngyro_bias_rad_s = [0.1, -0.05, 0.02]\n"
+        "gyro_matrix = [[0, 1.02, 0], [-0.98, 0, 0], [0, 0, 1]]\n"
+        "acc_offset_m_s2 = [0.4, -0.3, 1.0]\nmag_hard_iron_ut = [300, -40, 1200]\n"
+        "mag_soft_iron = [[1.3, 0.1, 0], [0.1, 0.7, 0], [0, 0, 1]]\n"
+        "mag_quality_pct = 1.5\nmag_coverage = 0.92\n",
+        "c.toml");
+    EXPECT_TRUE(ok) << ok.error().message;
 }
 
 }  // namespace
