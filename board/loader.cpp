@@ -562,6 +562,9 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
     s.where = loc(t.source());
     if (auto v = getString(t, "name", path, true, "the sensor's name, a string")) {
         s.name = *v;
+        if (const std::string why = sensorNameProblem(*v); !why.empty()) {
+            error(t.get("name")->source(), path + ".name", why);
+        }
         for (const auto& o : board_.sensors) {
             if (o.name == *v) {
                 error(t.get("name")->source(), path + ".name",
@@ -1050,6 +1053,22 @@ LoadResult loadBoardText(std::string_view text, const std::string& sourceName) {
         out.board->text = std::string(text);
     }
     return out;
+}
+
+std::string sensorNameProblem(std::string_view name) {
+    constexpr std::size_t kMaxLength = 64;
+    const auto allowed = [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+               c == '_' || c == '-' || c == '.';
+    };
+    if (name.empty() || name.size() > kMaxLength || name.front() == '.' || name.front() == '-' ||
+        !std::all_of(name.begin(), name.end(), allowed)) {
+        return fmt::format(
+            "sensor name '{}': expected 1 to {} letters, digits, '_', '-' or '.', not starting "
+            "with '.' or '-' (the name names files and web addresses)",
+            name, kMaxLength);
+    }
+    return {};
 }
 
 LoadResult loadBoardFile(const std::filesystem::path& path) {

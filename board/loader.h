@@ -41,6 +41,11 @@ inline constexpr std::size_t kMaxBoardFileBytes = 1u << 20;
 
 LoadResult loadBoardFile(const std::filesystem::path& path);
 
+// A sensor's name names files (`caphub sim --all` writes NAME.csv.gz), keys of the calibration and
+// magnetometer state files and the web API's paths: 1 to 64 letters, digits, '_', '-' and '.',
+// not starting with '.' or '-'. Empty when `name` is one, else what is wrong with it.
+std::string sensorNameProblem(std::string_view name);
+
 // The same from text; sourceName stands for the file name in diagnostics.
 LoadResult loadBoardText(std::string_view text, const std::string& sourceName);
 

@@ -194,6 +194,12 @@ int runBroadImport(const BroadImportArgs& a) {
         st.path = path;
         const SimTrialName sim = parseSimTrialName(trial->name);
         st.name = sim.sensor.empty() ? stemOf(path) : sim.sensor;
+        if (const std::string why = board::sensorNameProblem(st.name); !why.empty()) {
+            return fail(kExitUsage,
+                        fmt::format("{}: {} ({})", path.string(), why,
+                                    sim.sensor.empty() ? "the file's name: rename the file"
+                                                       : "the sensor named in its comment line"));
+        }
         st.boardName = sim.board;
         if (const auto it = a.segmentOf.find(st.name); it != a.segmentOf.end()) {
             st.segment = it->second;

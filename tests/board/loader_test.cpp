@@ -7,6 +7,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -95,6 +96,23 @@ TEST(BoardLoader, ReportsAnUnknownChip) {
     expectOneError(load(text), "sensor[0].chip", lineOf(text, "mpu9250"), "unknown chip 'mpu9250'");
 }
 
+// A sensor's name names files: "../x" made `caphub sim --all` write outside its folder, and a
+// name with spaces or '#' made the magnetometer state file unreadable.
+TEST(BoardLoader, ReportsASensorNameThatCannotNameAFile) {
+    for (const std::string& bad :
+         std::vector<std::string>{"../x", "a/b", "left foot", "a#b", ".hidden", "-a", "",
+                                  std::string(65, 'a'), "\u00e9"}) {
+        const std::string text = kHeader + sensor(bad, "pelvis", 0, 0x68);
+        expectOneError(load(text), "sensor[0].name", lineOf(text, "name = \"" + bad + "\""),
+                       "expected 1 to 64 letters, digits");
+    }
+    for (const std::string& good :
+         std::vector<std::string>{"l_foot", "IMU-3", "imu.3", "00B421AF", std::string(64, 'a')}) {
+        const auto r = load(kHeader + sensor(good, "pelvis", 0, 0x68));
+        EXPECT_TRUE(r.ok()) << good << ": " << r.errors[0].str();
+    }
+}
+
 TEST(BoardLoader, ReportsAnUnknownSegmentAndListsTheKnownOnes) {
     const std::string text = kHeader + sensor("a", "tail", 0, 0x68);
     const auto r = load(text);
@@ -123,7 +141,8 @@ TEST(BoardLoader, ADeviceOnTheBusItselfCollidesWithEveryChannel) {
 }
 
 TEST(BoardLoader, ReportsAMalformedDataReadyLine) {
-    for (const std::string bad : {"gpio0:17", "gpiochip0", "gpiochip0:", "gpiochip0:x",
+    for (const std::string& bad :
+         std::vector<std::string>{"gpio0:17", "gpiochip0", "gpiochip0:", "gpiochip0:x",
                                   "gpiochip0:17:1", "gpiochip-1:3", "gpiochip0: 17"}) {
         const std::string text =
             kHeader + sensor("a", "pelvis", 0, 0x68, "drdy = \"" + bad + "\"\n");
