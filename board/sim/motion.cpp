@@ -252,6 +252,42 @@ Result<Motion> Motion::fromClip(const BvhClip& clip, const JointMap& map,
                                          "set unit_m in the map or pass the unit option",
                                          map.name)};
     }
+    // In metres, the clip must be a body somewhere on the ground: an OFFSET of 1e50 units (or
+    // a unit of 1e300 m) made every figure of the evaluation nan or inf.
+    constexpr double kMaxBoneM = 2.0;          // a longer bone is not a person's
+    constexpr double kMaxPositionM = 10000.0;  // a capture 10 km from its origin is a mistake
+    for (const BvhJoint& j : clip.joints) {
+        for (const auto& [what, offset] :
+             {std::pair{"OFFSET", j.offset},
+              std::pair{"End Site OFFSET", j.endSite.value_or(Vec3d::Zero())}}) {
+            const double m = offset.norm() * *unit;
+            if (!(m <= kMaxBoneM) && !(j.parent < 0 && m <= kMaxPositionM)) {
+                return Error{EINVAL,
+                             fmt::format("line {}: joint '{}': its {} is {:g} m long at {:g} m "
+                                         "per unit, more than a body's bone ({:g} m): not a "
+                                         "body's skeleton, or the wrong unit (unit_m of map "
+                                         "'{}')",
+                                         j.line, j.name, what, m, *unit, kMaxBoneM, map.name)};
+            }
+        }
+    }
+    for (int f = 0; f < clip.frameCount; ++f) {
+        const std::span<const double> values = clip.frame(f);
+        for (const BvhJoint& j : clip.joints) {
+            for (std::size_t c = 0; c < j.channels.size(); ++c) {
+                const BvhChannel ch = j.channels[c];
+                const bool position = ch == BvhChannel::Xposition || ch == BvhChannel::Yposition ||
+                                      ch == BvhChannel::Zposition;
+                const double v = values[static_cast<std::size_t>(j.firstChannel) + c];
+                if (position && !(std::abs(v) * *unit <= kMaxPositionM)) {
+                    return Error{EINVAL,
+                                 fmt::format("frame {}: joint '{}': a position of {:g} m at {:g} "
+                                             "m per unit, beyond {:g} m of the origin",
+                                             f, j.name, v * *unit, *unit, kMaxPositionM)};
+                }
+            }
+        }
+    }
     const ReferencePose ref =
         options.reference ? *options.reference : map.reference.value_or(ReferencePose{});
     if (ref.kind == ReferencePose::Kind::Frame && (ref.frame < 0 || ref.frame >= clip.frameCount)) {

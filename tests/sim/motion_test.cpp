@@ -224,8 +224,32 @@ TEST(Motion, PositionsAreInMetresOfTheMapsUnit) {
     const Motion m = walk(o);
     // CMU: the root is 16.2134 units above the floor in frame 0, 1 unit = 0.056444 m.
     EXPECT_NEAR(at(m, Segment::Pelvis, 0).positionM.y(), 16.2134 * 0.056444, 1e-9);
-    o.unitM = 1.0;
-    EXPECT_NEAR(at(walk(o), Segment::Pelvis, 0).positionM.y(), 16.2134, 1e-9);
+    o.unitM = 0.1;
+    EXPECT_NEAR(at(walk(o), Segment::Pelvis, 0).positionM.y(), 1.62134, 1e-9);
+}
+
+// In metres the clip must be a body: an OFFSET of 1e50 (or a unit of 1e300 m) made every figure
+// of an evaluation nan or inf; a unit that makes a bone longer than 2 m is the wrong one.
+TEST(Motion, AClipThatIsNotABodyInMetresIsAnError) {
+    MotionOptions o;
+    o.unitM = 1.0;  // the CMU walk in its own units: a femur of 7.6 m
+    const auto giant = Motion::fromClip(walkClip(), *findBuiltInJointMap("cmu-motionbuilder"), o);
+    ASSERT_FALSE(giant.ok());
+    EXPECT_THAT(giant.error().message, HasSubstr("more than a body's bone (2 m)"));
+    const std::string far =
+        "HIERARCHY\nROOT R\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n"
+        "End Site\n{\nOFFSET 1e50 0 0\n}\n}\nMOTION\nFrames: 1\nFrame Time: 0.01\n0 1 0\n";
+    const auto bone = Motion::fromClip(*parseBvh(far, "far"), rootOnlyMap());
+    ASSERT_FALSE(bone.ok());
+    EXPECT_THAT(bone.error().message,
+                HasSubstr("line 2: joint 'R': its End Site OFFSET is 1e+50 m"));
+    const std::string away =
+        "HIERARCHY\nROOT R\n{\nOFFSET 0 0 0\nCHANNELS 3 Xposition Yposition Zposition\n"
+        "End Site\n{\nOFFSET 0.1 0 0\n}\n}\nMOTION\nFrames: 2\nFrame Time: 0.01\n0 1 0\n"
+        "0 1 1e300\n";
+    const auto position = Motion::fromClip(*parseBvh(away, "away"), rootOnlyMap());
+    ASSERT_FALSE(position.ok());
+    EXPECT_THAT(position.error().message, HasSubstr("frame 1: joint 'R': a position of 1e+300 m"));
 }
 
 TEST(Motion, AClipWithoutAUnitIsAnError) {
