@@ -331,6 +331,9 @@ void Parser::run(const toml::table& root) {
     }
     if (auto v = getString(root, "name", "", true, "the board's name, a string")) {
         board_.name = *v;
+        if (const std::string why = nameProblem("board", *v); !why.empty()) {
+            error(root.get("name")->source(), "name", why);
+        }
     }
     if (auto v = getString(root, "description", "", false, "a string")) {
         board_.description = *v;
@@ -562,7 +565,7 @@ void Parser::parseSensor(const toml::table& t, const std::string& path) {
     s.where = loc(t.source());
     if (auto v = getString(t, "name", path, true, "the sensor's name, a string")) {
         s.name = *v;
-        if (const std::string why = sensorNameProblem(*v); !why.empty()) {
+        if (const std::string why = nameProblem("sensor", *v); !why.empty()) {
             error(t.get("name")->source(), path + ".name", why);
         }
         for (const auto& o : board_.sensors) {
@@ -1055,7 +1058,7 @@ LoadResult loadBoardText(std::string_view text, const std::string& sourceName) {
     return out;
 }
 
-std::string sensorNameProblem(std::string_view name) {
+std::string nameProblem(std::string_view what, std::string_view name) {
     constexpr std::size_t kMaxLength = 64;
     const auto allowed = [](char c) {
         return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
@@ -1064,9 +1067,9 @@ std::string sensorNameProblem(std::string_view name) {
     if (name.empty() || name.size() > kMaxLength || name.front() == '.' || name.front() == '-' ||
         !std::all_of(name.begin(), name.end(), allowed)) {
         return fmt::format(
-            "sensor name '{}': expected 1 to {} letters, digits, '_', '-' or '.', not starting "
+            "{} name '{}': expected 1 to {} letters, digits, '_', '-' or '.', not starting "
             "with '.' or '-' (the name names files and web addresses)",
-            name, kMaxLength);
+            what, name, kMaxLength);
     }
     return {};
 }

@@ -41,10 +41,11 @@ inline constexpr std::size_t kMaxBoardFileBytes = 1u << 20;
 
 LoadResult loadBoardFile(const std::filesystem::path& path);
 
-// A sensor's name names files (`caphub sim --all` writes NAME.csv.gz), keys of the calibration and
-// magnetometer state files and the web API's paths: 1 to 64 letters, digits, '_', '-' and '.',
-// not starting with '.' or '-'. Empty when `name` is one, else what is wrong with it.
-std::string sensorNameProblem(std::string_view name);
+// A board's and a sensor's name name files (a recording is TIMESTAMP-BOARD.cap, `caphub sim
+// --all` writes SENSOR.csv.gz), keys of the calibration and magnetometer state files and the web
+// API's paths: 1 to 64 letters, digits, '_', '-' and '.', not starting with '.' or '-'. Empty
+// when `name` is one, else what is wrong with it ("sensor name '../x': expected ...").
+std::string nameProblem(std::string_view what, std::string_view name);
 
 // The same from text; sourceName stands for the file name in diagnostics.
 LoadResult loadBoardText(std::string_view text, const std::string& sourceName);

@@ -194,7 +194,7 @@ int runBroadImport(const BroadImportArgs& a) {
         st.path = path;
         const SimTrialName sim = parseSimTrialName(trial->name);
         st.name = sim.sensor.empty() ? stemOf(path) : sim.sensor;
-        if (const std::string why = board::sensorNameProblem(st.name); !why.empty()) {
+        if (const std::string why = board::nameProblem("sensor", st.name); !why.empty()) {
             return fail(kExitUsage,
                         fmt::format("{}: {} ({})", path.string(), why,
                                     sim.sensor.empty() ? "the file's name: rename the file"

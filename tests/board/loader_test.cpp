@@ -96,7 +96,8 @@ TEST(BoardLoader, ReportsAnUnknownChip) {
     expectOneError(load(text), "sensor[0].chip", lineOf(text, "mpu9250"), "unknown chip 'mpu9250'");
 }
 
-// A sensor's name names files: "../x" made `caphub sim --all` write outside its folder, and a
+// A board's and a sensor's name name files: a board named "../../x" made `caphub run` record
+// outside its folder, a sensor named "../x" made `caphub sim --all` write outside its, and a
 // name with spaces or '#' made the magnetometer state file unreadable.
 TEST(BoardLoader, ReportsASensorNameThatCannotNameAFile) {
     for (const std::string& bad :
@@ -111,6 +112,12 @@ TEST(BoardLoader, ReportsASensorNameThatCannotNameAFile) {
         const auto r = load(kHeader + sensor(good, "pelvis", 0, 0x68));
         EXPECT_TRUE(r.ok()) << good << ": " << r.errors[0].str();
     }
+}
+
+TEST(BoardLoader, ReportsABoardNameThatCannotNameAFile) {
+    std::string text = kHeader + sensor("a", "pelvis", 0, 0x68);
+    text.replace(text.find("name = \"test\""), 13, "name = \"../../x\"");
+    expectOneError(load(text), "name", 2, "board name '../../x': expected 1 to 64 letters");
 }
 
 TEST(BoardLoader, ReportsAnUnknownSegmentAndListsTheKnownOnes) {
