@@ -85,6 +85,12 @@ Result<void> loadMagState(const fs::path& path, const board::Board& b, FusionSta
             return Error{EINVAL, fmt::format("{}:{}: unknown sensor '{}' (board '{}')",
                                              path.string(), lineNo, name, b.name)};
         }
+        for (const auto& given : parsed) {
+            if (given.first == sensor) {
+                return Error{EINVAL, fmt::format("{}:{}: sensor '{}' is given twice", path.string(),
+                                                 lineNo, name)};
+            }
+        }
         parsed.emplace_back(sensor, *state);
     }
     for (const auto& [sensor, state] : parsed) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <sstream>
 
@@ -33,10 +34,12 @@ Eigen::Matrix<double, kTerms, 1> terms(const Vec3d& d) {
     return psi;
 }
 
+// Sums of squares (the moments' diagonals) are never negative: a state that says one is has
+// been damaged, whatever the rest of it says.
 bool usable(const OnlineHardIronState& s) {
     return s.anchor.allFinite() && s.moments.allFinite() && s.weight() >= 0.0 &&
-           s.moments(kTarget, kTarget) >= 0.0 && s.alignMoments.allFinite() &&
-           s.alignWeight() >= 0.0;
+           (s.moments.diagonal().array() >= 0.0).all() && s.alignMoments.allFinite() &&
+           s.alignWeight() >= 0.0 && (s.alignMoments.diagonal().array() >= 0.0).all();
 }
 
 // Writes and reads the upper triangle of a symmetric matrix, row by row.
@@ -128,8 +131,11 @@ std::optional<OnlineHardIronState> parseHardIronState(std::string_view line) {
             return std::nullopt;
         }
     }
+    // The sample count: digits only (a stream reads "-5" as 2^64 - 5).
+    std::string count;
     std::uint64_t n = 0;
-    if (!(in >> n)) {
+    if (!(in >> count) || count.find_first_not_of("0123456789") != std::string::npos ||
+        std::from_chars(count.data(), count.data() + count.size(), n).ec != std::errc{}) {
         return std::nullopt;
     }
     std::string rest;

@@ -606,6 +606,22 @@ TEST(EvaluateCli, RejectsAMalformedMagStateWithItsLine) {
         << r.output;
 }
 
+// A sensor given twice (two files joined) loaded the second silently.
+TEST(EvaluateCli, RejectsAMagStateThatGivesASensorTwice) {
+    const std::string path =
+        ::testing::TempDir() + "caphub-mag-state-twice-" + std::to_string(::getpid()) + ".txt";
+    std::string line = "pelvis";
+    for (int i = 0; i < 74; ++i) {
+        line += " 0";
+    }
+    std::ofstream(path) << "# comment\n" << line << "\n" << line << "\n";
+    const auto r =
+        caphub::testing::caphub("evaluate --mag-state " + path + " --bvh " + kWalk.string());
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find(path + ":3: sensor 'pelvis' is given twice"), std::string::npos)
+        << r.output;
+}
+
 TEST(EvaluateCli, RejectsAnUnknownCalibrationWithExitCode2) {
     const auto r = caphub::testing::caphub("evaluate --calibrate apose --bvh " + kWalk.string());
     EXPECT_EQ(r.exitCode, 2) << r.output;

@@ -141,6 +141,17 @@ TEST(OnlineHardIron, ForgetsAnOldOffsetAndCarriesItsStateToTheNextRun) {
     EXPECT_FALSE(parseHardIronState("1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19"));
     EXPECT_FALSE(parseHardIronState(formatHardIronState(est.state()) + " 5"));
     EXPECT_FALSE(parseHardIronState("nan " + formatHardIronState(est.state()).substr(2)));
+    // A damaged state: a sum of squares below zero, a count read as 2^64 - 5.
+    OnlineHardIronState negative = est.state();
+    negative.moments(3, 3) = -1e10;
+    EXPECT_FALSE(parseHardIronState(formatHardIronState(negative)));
+    negative = est.state();
+    negative.alignMoments(2, 2) = -1.0;
+    EXPECT_FALSE(parseHardIronState(formatHardIronState(negative)));
+    std::string counted = formatHardIronState(est.state());
+    counted = counted.substr(0, counted.find_last_of(' ')) + " -5";
+    EXPECT_FALSE(parseHardIronState(counted));
+    EXPECT_FALSE(parseHardIronState(counted.substr(0, counted.size() - 3) + " 5.5"));
 
     OnlineHardIronState bad = est.state();
     bad.moments(5, 8) = std::nan("");
