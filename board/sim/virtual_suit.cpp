@@ -228,7 +228,9 @@ Result<ClipSuit> clipSources(const ClipOptions& options, Timestamp start) {
     }
     auto motion = Motion::fromClip(*clip, map);
     if (!motion) {
-        return motion.error();
+        // Said of the clip: its line or frame is in the message.
+        return Error{motion.error().code,
+                     fmt::format("'{}': {}", options.bvh.string(), motion.error().message)};
     }
     ClipSuit suit;
     for (ImplausibleTurns& t : implausibleTurns(*clip)) {

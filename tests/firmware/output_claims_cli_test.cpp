@@ -93,6 +93,22 @@ TEST(EvaluateOutput, TheJsonIsNeverAnInputAndIsCheckedBeforeTheRun) {
     EXPECT_TRUE(isFifo(pipe));
 }
 
+// Every clip is read before the first run: a clip whose skeleton is no body in metres (an
+// OFFSET of 1e50 made every figure nan) is refused, named, before the good one's run.
+TEST(EvaluateInputs, EveryClipIsReadBeforeTheFirstRun) {
+    // The same clip with its abdomen 1e50 units above its hip.
+    std::string text = readAll(clip());
+    const std::string offset = "OFFSET 0 20.6881 -0.73152";
+    ASSERT_NE(text.find(offset), std::string::npos);
+    text.replace(text.find(offset), offset.size(), "OFFSET 0 1e50 0");
+    const std::string giant = path("giant.bvh");
+    std::ofstream(giant) << text;
+    const CliRun r = bounded("evaluate --bvh " + clip() + " --bvh " + giant);
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("'" + giant + "': line 6: joint 'abdomen': its OFFSET is"));
+    EXPECT_THAT(r.output, ::testing::Not(HasSubstr("deg")));
+}
+
 TEST(SimOutput, AStreamIsNeverAnInputNorWrittenIntoAFifo) {
     const std::string before = readAll(clip());
     const CliRun self = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + clip());
