@@ -361,6 +361,7 @@ void addCalibrateCommand(CLI::App& app, int& exitCode) {
         auto o = std::make_shared<CalibrateOptions>();
         CLI::App* sub = cmd->add_subcommand(s.name, s.help);
         sub->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+            ->check(nonEmptyPath())
             ->capture_default_str();
         sub->add_option("-f,--file", o->file, "Calibration file to update (created when missing)")
             ->capture_default_str();
@@ -373,6 +374,7 @@ void addCalibrateCommand(CLI::App& app, int& exitCode) {
             ->capture_default_str();
         sub->add_option("--seed", o->seed,
                         "Virtual suit: seed of the sensor errors (the same parts as run/sim)")
+            ->check(seedNumber())
             ->capture_default_str();
         sub->callback([&exitCode, o, kind = s.kind] { exitCode = calibrate(kind, *o); });
     }

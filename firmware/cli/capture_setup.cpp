@@ -40,6 +40,7 @@ void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o) {
     cmd.add_option("--profile", o.profile, "Virtual suit: sensor errors: ideal, typical, harsh")
         ->capture_default_str();
     cmd.add_option("--seed", o.seed, "Virtual suit: seed of the sensor errors")
+        ->check(seedNumber())
         ->capture_default_str();
     cmd.add_flag("--rest", o.rest, "Virtual suit: stand still instead of playing a clip");
 }

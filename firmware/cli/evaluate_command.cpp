@@ -236,6 +236,14 @@ int evaluate(const EvaluateCliOptions& c) {
     };
     const std::vector<std::uint64_t> seeds =
         c.seeds.empty() ? std::vector<std::uint64_t>{c.suit.seed} : c.seeds;
+    // A seed twice would count its run twice in every mean.
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+        if (std::find(seeds.begin(), seeds.begin() + static_cast<std::ptrdiff_t>(i), seeds[i]) !=
+            seeds.begin() + static_cast<std::ptrdiff_t>(i)) {
+            fmt::print(stderr, "caphub evaluate: --seeds: seed {} is given twice\n", seeds[i]);
+            return kExitUsage;
+        }
+    }
     if (!c.calibration.empty()) {
         for (const std::uint64_t seed : seeds) {
             if (!calibrationFor(seed)) {
@@ -382,7 +390,8 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                   "One line per clip and seed instead of the per-joint tables; the summary table "
                   "over every clip at the end as always with several runs");
     cmd->add_option("--seeds", o->seeds, "Several seeds (instead of --seed): each clip with each")
-        ->delimiter(',');
+        ->delimiter(',')
+        ->check(seedNumber());
     cmd->callback([&exitCode, o] { exitCode = evaluate(*o); });
 }
 

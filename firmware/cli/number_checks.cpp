@@ -1,6 +1,8 @@
 #include "firmware/cli/number_checks.h"
 
+#include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <string>
@@ -62,6 +64,21 @@ CLI::Validator zeroOrRange(double min, double max) {
 
 CLI::Validator finitePositive() {
     return finiteCheck("POSITIVE", 0.0, true, std::numeric_limits<double>::max());
+}
+
+CLI::Validator seedNumber() {
+    return CLI::Validator(
+        [](std::string& input) -> std::string {
+            std::uint64_t v = 0;
+            const char* end = input.data() + input.size();
+            const auto [at, ec] = std::from_chars(input.data(), end, v);
+            if (input.empty() || ec != std::errc{} || at != end) {
+                return fmt::format("Value '{}' is not a seed (a whole number, 0 to {})", input,
+                                   std::numeric_limits<std::uint64_t>::max());
+            }
+            return std::string();
+        },
+        "SEED");
 }
 
 CLI::Validator nonEmptyPath() {

@@ -23,6 +23,10 @@ CLI::Validator finitePositive();
 // A finite number at or above zero.
 CLI::Validator finiteNonNegative();
 
+// A seed: digits only, 0 to 2^64 - 1 (CLI11 reads "-1" into an unsigned as 2^64 - 1, and a
+// seed given as '' as 0).
+CLI::Validator seedNumber();
+
 // Not an empty string: a path given as '' (an unset shell variable) is a mistake, not "none".
 CLI::Validator nonEmptyPath();
 

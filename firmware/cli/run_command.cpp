@@ -308,6 +308,7 @@ void addRunCommand(CLI::App& app, int& exitCode) {
         "run",
         "Capture: sample the suit, record every sample and event (virtual suit for sim boards)");
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+        ->check(nonEmptyPath())
         ->capture_default_str();
     cmd->add_option("-d,--duration", o->durationS, "Seconds to capture (0: until Ctrl-C)")
         ->check(zeroOrRange(kMinDurationS, kMaxDurationS))

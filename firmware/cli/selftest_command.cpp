@@ -212,6 +212,7 @@ void addSelftestCommand(CLI::App& app, int& exitCode) {
     CLI::App* cmd = app.add_subcommand(
         "selftest", "Probe every sensor of a board: identity, configuration read-back, samples");
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+        ->check(nonEmptyPath())
         ->capture_default_str();
     cmd->add_option("--seconds", o->seconds, "Seconds of samples to check")
         ->check(finiteRange(0.0, 3600.0))

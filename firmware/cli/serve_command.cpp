@@ -263,6 +263,7 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         "serve",
         "Run the hub until stopped, operated from a web page and HTTP API (docs/serve.md)");
     cmd->add_option("-b,--board", o->board, "Board file, or the name of a shipped board")
+        ->check(nonEmptyPath())
         ->capture_default_str();
     cmd->add_option("--listen", o->listen,
                     "HOST:PORT to serve on; beyond 127.0.0.1 a password must be set first")

@@ -9,10 +9,13 @@ namespace caphub::firmware {
 void addSuitOptions(CLI::App& cmd, SuitCliOptions& o) {
     cmd.add_option("--map", o.map, "Joint-name map (TOML); default: detect a built-in preset");
     cmd.add_option("-b,--board", o.board, "A board whose buses are all simulated")
+        ->check(nonEmptyPath())
         ->capture_default_str();
     cmd.add_option("--profile", o.profile, "Sensor errors: ideal, typical, harsh")
         ->capture_default_str();
-    cmd.add_option("--seed", o.seed, "Seed of the sensor errors and straps")->capture_default_str();
+    cmd.add_option("--seed", o.seed, "Seed of the sensor errors and straps")
+        ->check(seedNumber())
+        ->capture_default_str();
     cmd.add_option("--strap-deg", o.strapDeg,
                    "Scale of each sensor's strapping error off its nominal mounting (deg)")
         ->check(finiteNonNegative())

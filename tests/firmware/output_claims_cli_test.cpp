@@ -107,6 +107,13 @@ TEST(EvaluateInputs, EveryClipIsReadBeforeTheFirstRun) {
     EXPECT_EQ(r.exitCode, 2) << r.output;
     EXPECT_THAT(r.output, HasSubstr("'" + giant + "': line 6: joint 'abdomen': its OFFSET is"));
     EXPECT_THAT(r.output, ::testing::Not(HasSubstr("deg")));
+    // A seed twice counted its run twice in every mean; one that is not a number ran as 0.
+    const CliRun twice = bounded("evaluate --bvh " + clip() + " --seeds 1,2,1");
+    EXPECT_EQ(twice.exitCode, 2) << twice.output;
+    EXPECT_THAT(twice.output, HasSubstr("seed 1 is given twice"));
+    const CliRun negative = bounded("evaluate --bvh " + clip() + " --seeds 1,-1");
+    EXPECT_EQ(negative.exitCode, 2) << negative.output;
+    EXPECT_THAT(negative.output, HasSubstr("Value '-1' is not a seed"));
 }
 
 TEST(SimOutput, AStreamIsNeverAnInputNorWrittenIntoAFifo) {
@@ -165,6 +172,10 @@ TEST(NumberOptions, ValuesThatRoundToNothingOrOverflowAreRefused) {
         {"calibrate gyro -d 1e6", "must be 0 or from 1 to 600"},
         // Too short to judge a rate by: every sensor was blamed.
         {"selftest --seconds 0.001", "give at least 0.2 s"},
+        // "-1" was read as 2^64 - 1 and '' as 0.
+        {"run --board sim-upper10 -d 1 --seed -1 --no-record --no-preview", "is not a seed"},
+        {"calibrate gyro --seed ''", "is not a seed"},
+        {"run --board '' -d 1 --no-record --no-preview", "an empty path names no file"},
     };
     for (const auto& c : cases) {
         const CliRun r = bounded(c.args);
