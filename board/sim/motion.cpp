@@ -260,7 +260,7 @@ Result<Motion> Motion::fromClip(const BvhClip& clip, const JointMap& map,
         for (const auto& [what, offset] :
              {std::pair{"OFFSET", j.offset},
               std::pair{"End Site OFFSET", j.endSite.value_or(Vec3d::Zero())}}) {
-            const double m = offset.norm() * *unit;
+            const double m = offset.stableNorm() * *unit;  // 1e200 units: no overflow
             if (!(m <= kMaxBoneM) && !(j.parent < 0 && m <= kMaxPositionM)) {
                 return Error{EINVAL,
                              fmt::format("line {}: joint '{}': its {} is {:g} m long at {:g} m "

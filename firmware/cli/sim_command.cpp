@@ -189,6 +189,15 @@ int sim(const SimOptions& o) {
         fmt::print(stderr, "caphub sim: {}\n", clip.error().message);
         return kExitUsage;
     }
+    // A capture of no duration runs until it is stopped: a clip of one frame of motion (two
+    // frames, the first the T-pose its map skips) simulated for ever.
+    if (clip->motion->durationNs() <= 0) {
+        fmt::print(stderr,
+                   "caphub sim: '{}': its motion is a single frame (frame {} of the file): "
+                   "nothing to simulate\n",
+                   clipOptions.bvh.string(), clip->motion->firstFrame());
+        return kExitUsage;
+    }
     auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
     if (!suit) {
         fmt::print(stderr, "caphub sim: {}\n", suit.error().message);

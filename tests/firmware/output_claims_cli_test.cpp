@@ -142,6 +142,26 @@ TEST(SimOutput, AStreamIsNeverAnInputNorWrittenIntoAFifo) {
     EXPECT_FALSE(fs::exists(path("p.csv.gz.part")));
 }
 
+// A clip of a single frame of motion gave a capture of no duration, which runs until stopped:
+// sim never ended.
+TEST(SimInputs, AClipOfOneFrameIsRefusedInsteadOfSimulatedForEver) {
+    // The Daz clip's map starts its motion at frame 6: seven frames leave one of motion.
+    const std::string text = readAll(clip());
+    const std::size_t frames = text.find("Frames:");
+    const std::size_t frameTime = text.find("Frame Time:");
+    ASSERT_NE(frames, std::string::npos);
+    std::size_t end = text.find('\n', frameTime);
+    for (int row = 0; row < 7; ++row) {
+        end = text.find('\n', end + 1);
+    }
+    const std::string one = path("one-frame.bvh");
+    std::ofstream(one) << text.substr(0, frames) << "Frames: 7\n"
+                       << text.substr(frameTime, end + 1 - frameTime);
+    const CliRun r = bounded("sim --sensor pelvis --bvh " + one + " -o " + path("one.csv.gz"));
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("its motion is a single frame (frame 6 of the file)"));
+}
+
 TEST(CalibrateOutput, TheFileIsCheckedBeforeTheSensorsAreMoved) {
     const std::string pipe = fifo("cal.fifo");
     const CliRun intoFifo = bounded("calibrate gyro --file " + pipe);
