@@ -3,9 +3,11 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace caphub::testing {
 
@@ -35,6 +37,15 @@ inline CliRun shell(const std::string& command) {
 // cross-compiled) with these arguments.
 inline CliRun caphub(const std::string& args) {
     return shell(std::string(CAPHUB_BINARY) + " " + args);
+}
+
+// An empty folder of this process's own: `base` + `prefix` + the process id (ctest runs the tests
+// in parallel processes; each makes its files there).
+inline std::string freshFolder(const std::string& base, const std::string& prefix) {
+    const std::string p = base + prefix + std::to_string(::getpid());
+    std::filesystem::remove_all(p);
+    std::filesystem::create_directories(p);
+    return p;
 }
 
 }  // namespace caphub::testing

@@ -27,12 +27,10 @@ using caphub::testing::caphub;
 using caphub::testing::CliRun;
 using caphub::testing::shell;
 
-// A folder of this process's own (ctest runs the tests in parallel processes).
 const std::string& dir() {
     static const std::string d = [] {
         const std::string p =
-            ::testing::TempDir() + "caphub_file_faults_" + std::to_string(getpid());
-        fs::remove_all(p);
+            caphub::testing::freshFolder(::testing::TempDir(), "caphub_file_faults_");
         fs::create_directories(p + "/a-directory");
         return p;
     }();

@@ -23,15 +23,9 @@ using caphub::testing::caphub;
 using caphub::testing::CliRun;
 using caphub::testing::shell;
 
-// A folder of this process's own (ctest runs the tests in parallel processes).
 const std::string& dir() {
-    static const std::string d = [] {
-        const std::string p =
-            ::testing::TempDir() + "caphub_output_claims_" + std::to_string(getpid());
-        fs::remove_all(p);
-        fs::create_directories(p);
-        return p;
-    }();
+    static const std::string d =
+        caphub::testing::freshFolder(::testing::TempDir(), "caphub_output_claims_");
     return d;
 }
 
