@@ -134,13 +134,23 @@ void attachPreview(HubOptions& ho, render::SinkSet sinks, double fps, std::strin
 }
 
 StopSignals::StopSignals() {
-    std::signal(SIGINT, onStopSignal);
-    std::signal(SIGTERM, onStopSignal);
+    for (std::size_t i = 0; i < kStopping.size(); ++i) {
+        (void)::sigaction(kStopping[i], nullptr, &previous_[i]);
+        // A terminal's hang-up ignored at the start (nohup) stays ignored.
+        if (kStopping[i] == SIGHUP && previous_[i].sa_handler == SIG_IGN) {
+            continue;
+        }
+        struct sigaction sa {};
+        sa.sa_handler = onStopSignal;
+        sigemptyset(&sa.sa_mask);
+        (void)::sigaction(kStopping[i], &sa, nullptr);
+    }
 }
 
 StopSignals::~StopSignals() {
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
+    for (std::size_t i = 0; i < kStopping.size(); ++i) {
+        (void)::sigaction(kStopping[i], &previous_[i], nullptr);
+    }
     gCapture.store(nullptr);
 }
 

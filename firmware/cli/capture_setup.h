@@ -3,6 +3,8 @@
 // and the board file's text for the recordings' metadata; and the stop signals.
 #pragma once
 
+#include <array>
+#include <csignal>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -67,10 +69,13 @@ Result<CaptureSetup> buildCaptureSetup(const board::Board& b, const CaptureSetup
 // ("caphub run: preview ...") and the capture goes on without it.
 void attachPreview(HubOptions& ho, render::SinkSet sinks, double fps, std::string_view command);
 
-// SIGINT and SIGTERM stop the capture cleanly (its recordings complete), also when they come
-// before it started: install before creating what must be closed, arm once the Hub exists.
+// SIGINT, SIGTERM and SIGHUP (a closed terminal, unless ignored at the start) stop the capture
+// cleanly (its recordings complete, the status file says it ended), also when they come before it
+// started: install before creating what must be closed, arm once the Hub exists.
 class StopSignals {
 public:
+    static constexpr std::array<int, 3> kStopping{SIGINT, SIGTERM, SIGHUP};
+
     StopSignals();
     ~StopSignals();
     StopSignals(const StopSignals&) = delete;
@@ -79,6 +84,9 @@ public:
     void arm(Capture& capture);
     // A signal came.
     static bool signalled();
+
+private:
+    std::array<struct sigaction, kStopping.size()> previous_{};
 };
 
 }  // namespace caphub::firmware

@@ -18,6 +18,7 @@
 #include "firmware/cli/number_checks.h"
 #include "firmware/cli/preview_sinks.h"
 #include "firmware/evaluation.h"
+#include "firmware/export/output_file.h"
 #include "firmware/runtime/hub.h"
 #include "hal/core/input_file.h"
 #include "hal/core/log.h"
@@ -156,6 +157,29 @@ int run(const RunOptions& o) {
             fmt::print(stderr, "caphub run: --mag-state: {}\n", ok.error().message);
             return kExitUsage;
         }
+        // A file that is not a state file at all (a mistyped path) is refused: it would be
+        // replaced by the first save. A damaged state file is learnt afresh.
+        if (auto ok = checkMagStateFile(o.magState); !ok) {
+            fmt::print(stderr, "caphub run: --mag-state: {}\n", ok.error().message);
+            return kExitUsage;
+        }
+    }
+    // The files the capture writes: none of them another's, nor a file it reads, nor a device
+    // or a FIFO (the status file used to replace /dev/null, or the recording itself).
+    const fs::path statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    if (auto ok = exporter::claimOutputTarget(statusPath.string(), "--status-file",
+                                              {o.record, o.magState, o.calibration, o.suit.bvh});
+        !ok) {
+        fmt::print(stderr, "caphub run: {}\n", ok.error().message);
+        return kExitUsage;
+    }
+    if (!o.magState.empty()) {
+        if (auto ok = exporter::claimOutputTarget(o.magState, "--mag-state",
+                                                  {o.record, o.calibration, o.suit.bvh});
+            !ok) {
+            fmt::print(stderr, "caphub run: {}\n", ok.error().message);
+            return kExitUsage;
+        }
     }
     // The pose is held from the start until the orientations have been averaged, plus a margin.
     const double holdS = toSeconds(bodyOptions.settle + bodyOptions.average) + 0.5;
@@ -200,7 +224,7 @@ int run(const RunOptions& o) {
         ho.threads.realtimePriority = o.realtime;
     }
     ho.streams = streams;
-    ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    ho.statusPath = statusPath;
     ho.magStatePath = o.magState;
     fs::path recordingPath;
     if (!o.noRecord) {
@@ -314,9 +338,11 @@ void addRunCommand(CLI::App& app, int& exitCode) {
         ->check(zeroOrRange(kMinDurationS, kMaxDurationS))
         ->capture_default_str();
     cmd->add_option("-o,--out", o->out,
-                    "Folder for a timestamped recording (default: the board's outputs)");
+                    "Folder for a timestamped recording (default: the board's outputs)")
+        ->check(nonEmptyPath());
     auto* record = cmd->add_option("-r,--record", o->record,
-                                   "The recording's file (.cap); an existing file is not replaced");
+                                   "The recording's file (.cap); an existing file is not replaced")
+                       ->check(nonEmptyPath());
     cmd->add_option("--sync-ms", o->syncMs,
                     "The most a power cut may lose of the recording: fdatasync interval, ms")
         ->check(finiteRange(10, 10000))
@@ -339,11 +365,13 @@ void addRunCommand(CLI::App& app, int& exitCode) {
                     "default: the board's outputs)");
     cmd->add_option("--status-file", o->statusFile,
                     "Where to keep the live status for `caphub status` (default: $CAPHUB_STATUS, "
-                    "/run/caphub/status.json, or the temporary folder)");
+                    "/run/caphub/status.json, or the temporary folder)")
+        ->check(nonEmptyPath());
     cmd->add_option("--mag-state", o->magState,
                     "Keep what the magnetometers that the calibration file does not correct learn "
                     "of their hard and soft iron in this file: read at the start, saved every "
-                    "minute and at the end (docs/fusion.md)");
+                    "minute and at the end (docs/fusion.md)")
+        ->check(nonEmptyPath());
     cmd->add_option("--stream", o->streams,
                     "Stream the poses live to KIND:HOST:PORT[@RATE], KIND vmc, vrchat or caphub "
                     "(repeatable; e.g. vmc:127.0.0.1:39539@60; default: the board's outputs)");

@@ -16,6 +16,7 @@
 #include "firmware/cli/info.h"
 #include "firmware/cli/number_checks.h"
 #include "firmware/cli/preview_sinks.h"
+#include "firmware/export/output_file.h"
 #include "firmware/runtime/hub.h"
 #include "firmware/serve/auth.h"
 #include "firmware/serve/calibration_motion.h"
@@ -176,6 +177,28 @@ int runServe(const ServeOptions& o) {
         fmt::print(stderr, "caphub serve: {}\n", setup.error().message);
         return setup.error().code == EINVAL ? kExitUsage : kExitRuntime;
     }
+    // The folders and the status file, checked before the capture starts: a takes folder that is
+    // a file (or a FIFO) used to start and fail every take; a status file that is a device was
+    // replaced.
+    const fs::path recordings =
+        o.recordings.empty() ? fs::path(b.outputs.recordings) : fs::path(o.recordings);
+    for (const auto& [option, folder] :
+         {std::pair{"--recordings", recordings}, std::pair{"--state-dir", stateDir}}) {
+        std::error_code ec;
+        fs::create_directories(folder, ec);
+        if (!fs::is_directory(folder, ec)) {
+            fmt::print(stderr, "caphub serve: {} '{}' is not a folder{}\n", option, folder.string(),
+                       ec ? ": " + ec.message() : "");
+            return kExitUsage;
+        }
+    }
+    const fs::path statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    if (auto ok = exporter::claimOutputTarget(statusPath.string(), "--status-file",
+                                              {so.calibration, o.suit.bvh});
+        !ok) {
+        fmt::print(stderr, "caphub serve: {}\n", ok.error().message);
+        return kExitUsage;
+    }
     StopSignals signals;
     HubOptions ho;
     ho.calibrations = setup->calibrations;
@@ -184,7 +207,7 @@ int runServe(const ServeOptions& o) {
     if (o.realtime >= 0) {
         ho.threads.realtimePriority = o.realtime;
     }
-    ho.statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);
+    ho.statusPath = statusPath;
     // What the magnetometers the calibration does not correct learn is kept on the hub: the
     // next start is magnetic from its first sample (docs/fusion.md, "Persistence").
     {
@@ -192,7 +215,7 @@ int runServe(const ServeOptions& o) {
         fs::create_directories(stateDir, ec);
     }
     ho.magStatePath = stateDir / "mag-estimates.txt";
-    ho.recordings = o.recordings.empty() ? fs::path(b.outputs.recordings) : fs::path(o.recordings);
+    ho.recordings = recordings;
     ho.boardText = setup->boardText;
     ho.softwareVersion = versionLine();
     ho.calibrationPath = so.calibration;
@@ -269,10 +292,12 @@ void addServeCommand(CLI::App& app, int& exitCode) {
                     "HOST:PORT to serve on; beyond 127.0.0.1 a password must be set first")
         ->capture_default_str();
     cmd->add_option("--recordings", o->recordings,
-                    "Folder of the takes (default: the board's outputs)");
+                    "Folder of the takes (default: the board's outputs)")
+        ->check(nonEmptyPath());
     cmd->add_option("--state-dir", o->stateDir,
                     "The hub's state: password hash, calibration.toml (default: "
-                    "$CAPHUB_STATE_DIR, /var/lib/caphub, ~/.local/state/caphub)");
+                    "$CAPHUB_STATE_DIR, /var/lib/caphub, ~/.local/state/caphub)")
+        ->check(nonEmptyPath());
     cmd->add_option("--web-root", o->webRoot, "The web page's files (default: the installed ones)");
     cmd->add_flag("--set-password", o->setPassword,
                   "Read a password from stdin, store its hash in the state folder, and exit");
@@ -303,7 +328,8 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->check(finitePositive())
         ->capture_default_str();
     cmd->add_flag("--no-preview", o->noPreview, "No preview (the page's 3D view still works)");
-    cmd->add_option("--status-file", o->statusFile, "Where to keep the live status");
+    cmd->add_option("--status-file", o->statusFile, "Where to keep the live status")
+        ->check(nonEmptyPath());
     cmd->add_option("--http-threads", o->threads, "HTTP worker threads")
         ->check(finiteRange(4, 256))
         ->capture_default_str();

@@ -74,19 +74,24 @@ Result<fs::path> regularOutputTarget(const std::string& path) {
 }
 
 Result<fs::path> claimOutputTarget(const std::string& path, std::string_view option,
-                                   const std::vector<std::string>& inputs) {
+                                   const std::vector<std::string>& others) {
     auto target = regularOutputTarget(path);
     if (!target) {
         return Error{target.error().code, fmt::format("{}: {}", option, target.error().message)};
     }
     std::error_code ec;
-    if (fs::exists(*target, ec)) {
-        for (const std::string& input : inputs) {
-            if (!input.empty() && fs::equivalent(*target, input, ec)) {
-                return Error{EINVAL, fmt::format("{} '{}' is the input '{}': it is read, never "
-                                                 "replaced",
-                                                 option, path, input)};
-            }
+    const bool exists = fs::exists(*target, ec);
+    for (const std::string& other : others) {
+        // The same file under another name; one not made yet, under the same path.
+        std::error_code e1;
+        std::error_code e2;
+        const bool same = !other.empty() && (exists ? fs::equivalent(*target, other, e1)
+                                                    : fs::weakly_canonical(*target, e1) ==
+                                                          fs::weakly_canonical(other, e2));
+        if (same) {
+            return Error{EINVAL, fmt::format("{} '{}' is '{}', which the command also reads or "
+                                             "writes: not replaced",
+                                             option, path, other)};
         }
     }
     const fs::path folder = target->has_parent_path() ? target->parent_path() : fs::path(".");

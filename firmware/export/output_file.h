@@ -21,12 +21,12 @@ namespace caphub::firmware::exporter {
 // exist", each followed by ": only a regular file is written".
 Result<std::filesystem::path> regularOutputTarget(const std::string& path);
 
-// Where a command that reads `inputs` may write the file its option `option` (e.g. "--json")
-// names, checked before the command's work starts so that a long run does not end in "cannot
-// write": regularOutputTarget's target, which is none of `inputs` under any name (a command never
-// replaces what it reads) and whose folder exists.
+// Where a command may write the file its option `option` (e.g. "--json") names, checked before the
+// command's work starts so that a long run does not end in "cannot write": regularOutputTarget's
+// target, which is none of `others` (the files the command reads, and its other outputs) under
+// any name, and whose folder exists.
 Result<std::filesystem::path> claimOutputTarget(const std::string& path, std::string_view option,
-                                                const std::vector<std::string>& inputs);
+                                                const std::vector<std::string>& others);
 
 // Writes `text` to `target` (a claimOutputTarget) as a whole: into TARGET.part, renamed over
 // the target when complete; a failure or Ctrl-C leaves the target as it was.

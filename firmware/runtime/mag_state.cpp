@@ -21,6 +21,12 @@ namespace {
 // A state file is small (17 lines of 74 numbers, about 30 kB); anything far larger is not one.
 constexpr std::size_t kMaxFileBytes = 4u << 20;
 
+// Its first line.
+constexpr std::string_view kHeaderStart = "# caphub online hard- and soft-iron estimators";
+constexpr std::string_view kHeader =
+    "# caphub online hard- and soft-iron estimators (docs/fusion.md): sensor, anchor (3), "
+    "moments (55), alignment moments (15), samples\n";
+
 Error sysError(const std::string& what, const fs::path& path) {
     const int e = errno;
     return Error{e, fmt::format("{} '{}': {}", what, path.string(), std::strerror(e))};
@@ -99,6 +105,23 @@ Result<void> loadMagState(const fs::path& path, const board::Board& b, FusionSta
     return {};
 }
 
+Result<void> checkMagStateFile(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::exists(fs::symlink_status(path, ec))) {
+        return {};
+    }
+    auto text = readInputFile(path, kMaxFileBytes);
+    if (!text) {
+        return text.error();
+    }
+    if (!text->empty() && !text->starts_with(kHeaderStart)) {
+        return Error{EINVAL, fmt::format("'{}' is not a magnetometer state file (its first line is "
+                                         "not \"{}\"): it is not replaced",
+                                         path.string(), kHeaderStart)};
+    }
+    return {};
+}
+
 MagStates magStates(const board::Board& b, const FusionStage& fusion) {
     MagStates out;
     out.reserve(b.sensors.size());
@@ -109,9 +132,7 @@ MagStates magStates(const board::Board& b, const FusionStage& fusion) {
 }
 
 std::string magStateText(const board::Board& b, const MagStates& states) {
-    std::string text =
-        "# caphub online hard- and soft-iron estimators (docs/fusion.md): sensor, anchor (3), "
-        "moments (55), alignment moments (15), samples\n";
+    std::string text(kHeader);
     for (std::size_t i = 0; i < states.size() && i < b.sensors.size(); ++i) {
         if (states[i]) {
             text += b.sensors[i].name + " " + fusion::formatHardIronState(*states[i]) + "\n";

@@ -30,6 +30,11 @@ using MagStates = std::vector<std::optional<fusion::OnlineHardIronState>>;
 Result<void> loadMagState(const std::filesystem::path& path, const board::Board& board,
                           FusionStage& fusion);
 
+// Whether `path` may be kept as a state file: missing, empty, or beginning with the comment line
+// magStateText writes. Anything else (a file given by mistake) would be replaced by the first
+// save: "'P' is not a magnetometer state file (...): it is not replaced".
+Result<void> checkMagStateFile(const std::filesystem::path& path);
+
 // Every sensor's estimator state now (nullopt: a calibrated magnetometer, or none).
 MagStates magStates(const board::Board& board, const FusionStage& fusion);
 

@@ -1,15 +1,18 @@
 #include "firmware/runtime/status_stage.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "board/bus_budget.h"
 #include "firmware/runtime/thread_policy.h"
 #include "hal/core/log.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware {
 
@@ -205,18 +208,42 @@ std::string statusJson(const StatusSnapshot& s) {
 }
 
 void StatusStage::writeFile(const std::string& text) {
+    std::error_code ec;
+    // Only a regular file (or none) is replaced: a device or a FIFO given as the status file (or
+    // put there since) is left as it is.
+    struct stat st {};
+    if (::lstat(path_.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+        ec = std::make_error_code(std::errc::invalid_argument);
+    }
     // Per process: two captures sharing a status path never write into each other's file.
     const fs::path tmp = fs::path(path_.string() + "." + std::to_string(getpid()) + ".tmp");
-    std::error_code ec;
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        out << text;
-        if (!out) {
-            ec = std::make_error_code(std::errc::io_error);
-        }
-    }
     if (!ec) {
-        fs::rename(tmp, path_, ec);
+        if (auto fd = createOutputFd(tmp); !fd) {
+            ec = std::error_code(fd.error().code, std::generic_category());
+        } else {
+            std::size_t done = 0;
+            while (!ec && done < text.size()) {
+                const ssize_t n = ::write(*fd, text.data() + done, text.size() - done);
+                if (n < 0 && errno == EINTR) {
+                    continue;
+                }
+                if (n <= 0) {
+                    ec = std::error_code(n < 0 ? errno : EIO, std::generic_category());
+                } else {
+                    done += static_cast<std::size_t>(n);
+                }
+            }
+            if (::close(*fd) != 0 && !ec) {
+                ec = std::error_code(errno, std::generic_category());
+            }
+        }
+        if (!ec) {
+            fs::rename(tmp, path_, ec);
+        }
+        if (ec) {
+            std::error_code ignored;
+            fs::remove(tmp, ignored);
+        }
     }
     if (ec && error_.empty()) {
         error_ = ec.message();

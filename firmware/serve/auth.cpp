@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <sodium.h>
@@ -91,7 +92,17 @@ bool checkPassword(const fs::path& stateDir, const std::string& password) {
 }
 
 bool isLoopbackHost(const std::string& host) {
-    return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+    // An address, parsed: a prefix test took "127.0.0.1.evil.example" (a name any DNS can point
+    // at the hub: a rebound page) for this machine.
+    in_addr v4{};
+    if (::inet_pton(AF_INET, host.c_str(), &v4) == 1) {
+        return (ntohl(v4.s_addr) >> 24) == 127;
+    }
+    in6_addr v6{};
+    if (::inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
+        return IN6_IS_ADDR_LOOPBACK(&v6);
+    }
+    return host == "localhost";
 }
 
 std::string randomToken() {

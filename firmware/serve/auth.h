@@ -24,7 +24,8 @@ Result<void> setPassword(const std::filesystem::path& stateDir, const std::strin
 // True when it matches the stored hash (false: none stored, or another password).
 bool checkPassword(const std::filesystem::path& stateDir, const std::string& password);
 
-// True for 127.0.0.0/8, ::1 and "localhost".
+// True for an address in 127.0.0.0/8, ::1 and the name "localhost"; nothing else (a name that
+// merely starts with "127." is anybody's).
 bool isLoopbackHost(const std::string& host);
 
 // Random tokens as 64 hex digits (256 bits from libsodium's randombytes).

@@ -346,7 +346,7 @@ TEST(FusionReplayOutput, NeverItsInputNorADeviceAndWrittenWhole) {
     const std::string before = readAll(in);
     const CliRun self = caphub("fusion replay --in " + in + " --out " + in);
     EXPECT_EQ(self.exitCode, 2) << self.output;
-    EXPECT_THAT(self.output, HasSubstr("is the input"));
+    EXPECT_THAT(self.output, HasSubstr("which the command also reads or writes"));
     EXPECT_EQ(readAll(in), before);
     const std::string device = deviceNode();
     const CliRun full = caphub("fusion replay --in " + in + " --out " + device);

@@ -72,7 +72,7 @@ TEST(EvaluateOutput, TheJsonIsNeverAnInputAndIsCheckedBeforeTheRun) {
     const std::string before = readAll(clip());
     const CliRun self = bounded("evaluate --bvh " + clip() + " --json " + clip());
     EXPECT_EQ(self.exitCode, 2) << self.output;
-    EXPECT_THAT(self.output, HasSubstr("is the input"));
+    EXPECT_THAT(self.output, HasSubstr("which the command also reads or writes"));
     EXPECT_EQ(readAll(clip()), before);
     // Refused before the clip is played: no table was printed.
     const CliRun missing =
@@ -114,7 +114,7 @@ TEST(SimOutput, AStreamIsNeverAnInputNorWrittenIntoAFifo) {
     const std::string before = readAll(clip());
     const CliRun self = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + clip());
     EXPECT_EQ(self.exitCode, 2) << self.output;
-    EXPECT_THAT(self.output, HasSubstr("is the input"));
+    EXPECT_THAT(self.output, HasSubstr("which the command also reads or writes"));
     EXPECT_EQ(readAll(clip()), before);
     const std::string pipe = fifo("pelvis.fifo");
     const CliRun intoFifo = bounded("sim --sensor pelvis --bvh " + clip() + " -o " + pipe);
@@ -205,6 +205,54 @@ TEST(NumberOptions, ValuesThatRoundToNothingOrOverflowAreRefused) {
     EXPECT_EQ(slow.exitCode, 2) << slow.output;
     EXPECT_THAT(slow.output, HasSubstr("fewer than two of the file's 3 samples"));
     EXPECT_EQ(bounded("fusion replay --in " + trial + " --rate-hz 50").exitCode, 0);
+}
+
+// The capture's own outputs: the status file replaced a FIFO, a device (/dev/null, as root)
+// and the recording itself; --mag-state replaced a file that was never a state file; an empty
+// --record wrote a recording into the current folder.
+TEST(RunOutputs, NoOutputReplacesAnotherOrAFileThatIsNotItsOwn) {
+    const std::string run = "run --board sim-upper10 -d 1 --no-preview --no-stream ";
+    const std::string pipe = fifo("status.fifo");
+    const CliRun intoFifo = bounded(run + "--no-record --status-file " + pipe);
+    EXPECT_EQ(intoFifo.exitCode, 2) << intoFifo.output;
+    EXPECT_THAT(intoFifo.output, HasSubstr("is a FIFO"));
+    EXPECT_TRUE(isFifo(pipe));
+    const std::string same = path("same.cap");
+    const CliRun both = bounded(run + "--record " + same + " --status-file " + same);
+    EXPECT_EQ(both.exitCode, 2) << both.output;
+    EXPECT_THAT(both.output, HasSubstr("which the command also reads or writes"));
+    EXPECT_FALSE(fs::exists(same));
+    const std::string precious = path("precious.txt");
+    std::ofstream(precious) << "precious\n";
+    const CliRun stranger = bounded(run + "--no-record --mag-state " + precious);
+    EXPECT_EQ(stranger.exitCode, 2) << stranger.output;
+    EXPECT_THAT(stranger.output, HasSubstr("is not a magnetometer state file"));
+    EXPECT_EQ(readAll(precious), "precious\n");
+    const CliRun empty = bounded(run + "--record ''");
+    EXPECT_EQ(empty.exitCode, 2) << empty.output;
+    EXPECT_THAT(empty.output, HasSubstr("an empty path names no file"));
+    // serve: a takes folder that is a file started, then failed every take.
+    const CliRun takes = bounded("serve --board sim-upper10 -d 1 --no-preview --recordings " +
+                                 precious + " --state-dir " + path("state"));
+    EXPECT_EQ(takes.exitCode, 2) << takes.output;
+    EXPECT_THAT(takes.output, HasSubstr("--recordings '" + precious + "' is not a folder"));
+}
+
+// A closed terminal (SIGHUP) killed the capture: no end event, samples lost, the status file
+// left saying it ran. It now ends the capture as Ctrl-C does.
+TEST(RunSignals, AHangUpEndsTheCaptureCleanly) {
+    const std::string cap = path("hup.cap");
+    const std::string status = path("hup.json");
+    const CliRun r = shell("timeout -k 3 120 sh -c '" + std::string(CAPHUB_BINARY) +
+                           " run --board sim-upper10 -d 60 --no-preview --no-stream --record " +
+                           cap + " --status-file " + status +
+                           " > /dev/null 2>&1 & p=$!; for i in $(seq 300); do [ -s " + status +
+                           " ] && break; sleep 0.1; done; kill -HUP $p; wait $p; echo rc=$?'");
+    EXPECT_THAT(r.output, HasSubstr("rc=0")) << r.output;
+    const CliRun info = caphub("info " + cap);
+    EXPECT_EQ(info.exitCode, 0) << info.output;
+    EXPECT_THAT(info.output, HasSubstr("recording stopped"));
+    EXPECT_THAT(readAll(status), HasSubstr("\"running\": false"));
 }
 
 // A trial whose rows are all at rest (or whose markers were never seen) scored 0.000 deg: a

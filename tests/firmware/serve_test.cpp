@@ -156,6 +156,16 @@ std::string status(const httplib::Result& r) {
     return r ? std::to_string(r->status) + " " + r->body : "no answer";
 }
 
+TEST(ServeAuth, OnlyLoopbackAddressesAndLocalhostAreThisMachine) {
+    for (const char* host : {"127.0.0.1", "127.1.2.3", "::1", "0:0:0:0:0:0:0:1", "localhost"}) {
+        EXPECT_TRUE(isLoopbackHost(host)) << host;
+    }
+    for (const char* host : {"127.0.0.1.evil.example", "127.evil.com", "127.0.0.1@evil.com", "",
+                             "128.0.0.1", "::2", "localhost.evil.com", "0.0.0.0", "::"}) {
+        EXPECT_FALSE(isLoopbackHost(host)) << host;
+    }
+}
+
 TEST(Serve, RunsCalibrationATakeWithAMarkerAndDownloadsItsExportsEndToEnd) {
     ServeRig rig("e2e");
     ASSERT_GT(rig.port(), 0);
@@ -394,6 +404,13 @@ TEST(Serve, WithoutASessionOrItsCsrfTokenCommandsAreRefusedAndNothingChanges) {
     auto rebound = anon.Post("/api/login", {{"Host", "evil.example:80"}}, "{}", "application/json");
     ASSERT_TRUE(rebound);
     EXPECT_EQ(rebound->status, 403);
+    // ... by a name that starts like a loopback address (a prefix test let these in).
+    for (const char* host : {"127.0.0.1.evil.example:18080", "127.evil.com", "127.0.0.1@evil.com",
+                             "127.0.0.1 evil.com"}) {
+        auto named = anon.Post("/api/login", {{"Host", host}}, "{}", "application/json");
+        ASSERT_TRUE(named) << host;
+        EXPECT_EQ(named->status, 403) << host;
+    }
     // Too large a body.
     auto huge = s.post("/api/take/marker", {{"label", std::string(100000, 'x')}});
     ASSERT_TRUE(huge);
