@@ -308,6 +308,20 @@ Result<void> Hub::headingReset() {
     });
 }
 
+Result<void> Hub::deleteTakeFile(const fs::path& file) {
+    std::lock_guard lock(commandMutex_);
+    std::error_code ec;
+    if (take_ && (take_->path == file || fs::equivalent(take_->path, file, ec))) {
+        return Error{EBUSY, "the take is being recorded: stop it first"};
+    }
+    if (!fs::remove(file, ec) || ec) {
+        return Error{ec ? ec.value() : ENOENT,
+                     fmt::format("cannot delete '{}': {}", file.filename().string(),
+                                 ec ? ec.message() : "it is not there")};
+    }
+    return {};
+}
+
 HubState Hub::state() {
     HubState s;
     if (status_) {

@@ -131,6 +131,9 @@ public:
     Result<void> calibrateBodyTPlusN(Duration tCountdown, Duration nCountdown);
     // Turns the capture's world about up so that the subject faces forward as now.
     Result<void> headingReset();
+    // Deletes a take's file, unless it is the take being recorded (EBUSY); in turn with the
+    // commands, so that a take being started is never deleted under its writer.
+    Result<void> deleteTakeFile(const std::filesystem::path& file);
     HubState state();
 
     Capture& capture() { return capture_; }

@@ -195,13 +195,10 @@ void WebServer::State::takeRoutes() {
                 fail(res, 400, "to delete a take, give its file name again as \"confirm\"");
                 return;
             }
-            if (name == s->currentTakeName()) {
-                fail(res, 409, "the take is being recorded: stop it first");
-                return;
-            }
-            std::error_code ec;
-            if (!fs::remove(path, ec) || ec) {
-                fail(res, 500, fmt::format("cannot delete '{}': {}", name, ec.message()));
+            // Asked of the hub, in turn with its commands: a take whose start was still being
+            // carried out was deleted under its writer (the page's own record of it came late).
+            if (auto deleted = s->hub.deleteTakeFile(path); !deleted) {
+                fail(res, deleted.error().code == EBUSY ? 409 : 500, deleted.error().message);
                 return;
             }
             {

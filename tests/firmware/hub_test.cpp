@@ -171,6 +171,12 @@ TEST(Hub, TakesStartAndStopWhileTheCaptureRunsEachInItsOwnFile) {
     EXPECT_NE(second->path, first->path);
     EXPECT_FALSE(rig.hub->startTake("bad/name").ok());  // refused; the take goes on
     EXPECT_FALSE(rig.hub->startTake("../up").ok());
+    // The take being recorded is never deleted (the web page asked its own record of the take,
+    // which a start still being carried out had not reached).
+    auto busy = rig.hub->deleteTakeFile(second->path);
+    ASSERT_FALSE(busy.ok());
+    EXPECT_EQ(busy.error().code, EBUSY);
+    EXPECT_TRUE(fs::exists(second->path));
     ASSERT_TRUE(waitForRecords(*rig.hub, 800));
     rig.hub->requestStop();
     (void)rig.hub->wait();  // ends the second take with the capture
