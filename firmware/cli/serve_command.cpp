@@ -3,8 +3,13 @@
 // docs/serve.md). `caphub serve --set-password` stores the password that listening beyond this
 // machine needs.
 #include <charconv>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <future>
 #include <iostream>
+#include <memory>
+#include <thread>
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -113,6 +118,9 @@ int setPasswordFromStdin(const fs::path& stateDir) {
                serve::passwordFile(stateDir).string());
     return kExitOk;
 }
+
+// How long the web server's workers have to finish their requests once the hub has stopped.
+constexpr std::chrono::milliseconds kWebStopGrace{2000};
 
 int runServe(const ServeOptions& o) {
     const fs::path stateDir = o.stateDir.empty() ? defaultStateDir() : fs::path(o.stateDir);
@@ -267,14 +275,33 @@ int runServe(const ServeOptions& o) {
         serve::hasPassword(stateDir) ? "; password set" : "; no password (this machine only)");
     std::fflush(stdout);
 
-    const CaptureStats stats = hub.wait();
-    (*web)->stop();
+    const CaptureStats stats = hub.wait();  // the take and the state files are closed here
+    // The web server's workers end with their requests; a client that sends its request a byte
+    // at a time would hold the process for as long as it likes (SIGTERM took 38 s). They get a
+    // grace period, then the process ends without them: everything it wrote is closed.
+    auto stopped = std::make_shared<std::promise<void>>();
+    std::future<void> done = stopped->get_future();
+    std::thread stopper([w = web->get(), stopped] {
+        w->stop();
+        stopped->set_value();
+    });
+    const bool clean = done.wait_for(kWebStopGrace) == std::future_status::ready;
     fmt::print(
         "caphub serve: stopped; {} samples in {:.2f} s, {} dropped, {} sensor losses; "
         "{} poses, latency data-ready -> pose written p50 {:.3f} ms, p99 {:.3f} ms\n",
         stats.samples, toSeconds(stats.elapsed), stats.dropped, stats.lost, hub.body().poses(),
         toSeconds(hub.body().latencyPercentile(0.5)) * 1e3,
         toSeconds(hub.body().latencyPercentile(0.99)) * 1e3);
+    if (!clean) {
+        fmt::print(stderr,
+                   "caphub serve: web clients still connected {:g} s after the stop: ended "
+                   "without them\n",
+                   std::chrono::duration<double>(kWebStopGrace).count());
+        std::fflush(stdout);
+        std::fflush(stderr);
+        std::_Exit(kExitOk);
+    }
+    stopper.join();
     return kExitOk;
 }
 

@@ -4,6 +4,7 @@
 // duration of 1e-10 s ran until Ctrl-C, a speed of 1e300 spun, 1e-9 Hz ran at the full rate).
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 
@@ -253,6 +254,28 @@ TEST(RunSignals, AHangUpEndsTheCaptureCleanly) {
     EXPECT_EQ(info.exitCode, 0) << info.output;
     EXPECT_THAT(info.output, HasSubstr("recording stopped"));
     EXPECT_THAT(readAll(status), HasSubstr("\"running\": false"));
+}
+
+// A web client that sends its request a byte at a time held serve for as long as it kept
+// sending: SIGTERM took 38 s. The workers now get a grace period after the capture has stopped.
+TEST(ServeSignals, ASlowClientDoesNotHoldTheStop) {
+    const int port = 20000 + static_cast<int>(::getpid() % 20000);
+    const std::string script =
+        std::string(CAPHUB_BINARY) +
+        " serve --board sim-upper10 --no-preview --listen 127.0.0.1:" + std::to_string(port) +
+        " --state-dir " + path("slow-state") + " --recordings " + path("slow-takes") + " > " +
+        path("slow.log") + " 2>&1 & p=$!; " +
+        "for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/" + std::to_string(port) +
+        ") 2>/dev/null && break; sleep 0.1; done; " + "exec 3<>/dev/tcp/127.0.0.1/" +
+        std::to_string(port) + "; (while printf G >&3; do sleep 0.5; done) 2>/dev/null & t=$!; " +
+        "sleep 1; kill -TERM $p; s=$(date +%s%N); wait $p; rc=$?; e=$(date +%s%N); kill $t; " +
+        "echo rc=$rc ms=$(( (e - s) / 1000000 ))";
+    const CliRun r = shell("timeout -k 3 120 bash -c '" + script + "'");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex("rc=([0-9]+) ms=([0-9]+)")))
+        << r.output << readAll(path("slow.log"));
+    EXPECT_EQ(m[1], "0") << readAll(path("slow.log"));
+    EXPECT_LT(std::stoi(m[2]), 10000) << readAll(path("slow.log"));
 }
 
 // A trial whose rows are all at rest (or whose markers were never seen) scored 0.000 deg: a
