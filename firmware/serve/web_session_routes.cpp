@@ -141,11 +141,31 @@ void WebServer::State::sessionRoutes() {
             return;
         }
         if (s->passwordRequired) {
+            // At most one guess a second from each address, refused without waiting: a wrong
+            // guess used to hold its worker for a second under the lock, and thirty clients
+            // guessing starved every other request, a right password included.
+            const auto now = std::chrono::steady_clock::now();
+            {
+                std::lock_guard guess(s->guessMutex);
+                std::erase_if(s->nextGuess, [now](const auto& e) { return e.second <= now; });
+                if (const auto it = s->nextGuess.find(req.remote_addr); it != s->nextGuess.end()) {
+                    const double waitS = std::chrono::duration<double>(it->second - now).count();
+                    res.set_header("Retry-After", "1");
+                    fail(res, 429,
+                         fmt::format("a wrong password from here just now: try again in {:.1f} s",
+                                     waitS));
+                    return;
+                }
+            }
             const auto pw = b->value("password", Json());
-            std::lock_guard lock(s->loginMutex);
-            if (!pw.is_string() || !checkPassword(s->options.stateDir, pw.get<std::string>())) {
-                // Held under the lock: at most one guess a second.
-                std::this_thread::sleep_for(std::chrono::seconds(1));
+            bool right = false;
+            {
+                std::lock_guard lock(s->loginMutex);
+                right = pw.is_string() && checkPassword(s->options.stateDir, pw.get<std::string>());
+            }
+            if (!right) {
+                std::lock_guard guess(s->guessMutex);
+                s->nextGuess[req.remote_addr] = now + std::chrono::seconds(1);
                 fail(res, 401, "wrong password");
                 return;
             }

@@ -74,6 +74,10 @@ struct WebServer::State {
     bool passwordRequired = false;
     Sessions sessions;
     std::mutex loginMutex;  // one password check at a time (each costs 64 MiB and ~0.1 s)
+    // After a wrong password, when each client address may guess again (a guess before then is
+    // answered 429 at once: no worker waits, and other clients log in as before).
+    std::mutex guessMutex;
+    std::map<std::string, std::chrono::steady_clock::time_point> nextGuess;
 
     // The latest state document, for every client.
     std::mutex mutex;

@@ -500,9 +500,16 @@ TEST(Serve, ListeningBeyondThisMachineNeedsAPasswordThatIsThenRequired) {
     ASSERT_TRUE(wrong);
     EXPECT_EQ(wrong->status, 401);
     EXPECT_TRUE(wrong->get_header_value("Set-Cookie").empty());
+    // A second guess from the same address within a second is refused at once, right or not.
+    auto again = c.Post("/api/login", R"({"password": "correct horse"})", "application/json");
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->status, 429);
+    EXPECT_TRUE(again->get_header_value("Set-Cookie").empty());
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
     auto none = c.Post("/api/login", "{}", "application/json");
     ASSERT_TRUE(none);
     EXPECT_EQ(none->status, 401);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
     Session right((*web)->port(), "correct horse");
     EXPECT_FALSE(right.csrf.empty());
     EXPECT_TRUE(right.state().contains("sensors"));
