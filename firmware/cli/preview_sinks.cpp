@@ -30,6 +30,10 @@ Result<PreviewSpec> parsePreviewSpec(const std::string& spec) {
     const auto hostColon = arg.rfind(':');
     if (hostColon != std::string::npos) {
         p.host = arg.substr(0, hostColon);
+        // An IPv6 address in brackets ([::1]:8081), as --listen and --stream take it.
+        if (p.host.size() > 2 && p.host.front() == '[' && p.host.back() == ']') {
+            p.host = p.host.substr(1, p.host.size() - 2);
+        }
     }
     // The whole port must be a number from 0 to 65535 (atoi read "abc" as 0: any free port).
     const std::string portText = hostColon == std::string::npos ? arg : arg.substr(hostColon + 1);
@@ -67,7 +71,9 @@ render::SinkSet openPreviewSinks(const std::vector<std::string>& specs) {
             mo.port = p->port;
             auto server = render::MjpegServer::start(mo);
             if (server) {
-                fmt::print("preview: http://{}:{}/\n", mo.host, (*server)->port());
+                const bool v6 = mo.host.find(':') != std::string::npos;
+                fmt::print("preview: http://{}{}{}:{}/\n", v6 ? "[" : "", mo.host, v6 ? "]" : "",
+                           (*server)->port());
                 sinks.add(render::makeMjpegSink(std::move(*server)));
             } else {
                 sinks.addFailure(spec, server.error());

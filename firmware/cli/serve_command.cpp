@@ -140,6 +140,19 @@ int runServe(const ServeOptions& o) {
                    host, stateDir.string());
         return kExitUsage;
     }
+    // An extra MJPEG preview has no password: beyond this machine it would show the capture to
+    // anyone on the network while the page says "this machine only".
+    for (const std::string& spec : o.previews) {
+        if (auto p = parsePreviewSpec(spec);
+            p && p->kind == "http" && !serve::isLoopbackHost(p->host)) {
+            fmt::print(stderr,
+                       "caphub serve: --preview '{}': an MJPEG preview has no password, so serve "
+                       "keeps it on this machine (127.0.0.1 or [::1]); beyond it, watch the "
+                       "preview on the page\n",
+                       spec);
+            return kExitUsage;
+        }
+    }
     const fs::path webRoot = o.webRoot.empty() ? serve::defaultWebRoot() : fs::path(o.webRoot);
     if (webRoot.empty()) {
         fmt::print(stderr,

@@ -278,6 +278,17 @@ TEST(ServeSignals, ASlowClientDoesNotHoldTheStop) {
     EXPECT_LT(std::stoi(m[2]), 10000) << readAll(path("slow.log"));
 }
 
+// serve said "no password (this machine only)" while an extra MJPEG preview on 0.0.0.0 showed
+// the capture to the network.
+TEST(ServePreview, AnMjpegPreviewStaysOnThisMachine) {
+    const CliRun wide = bounded(
+        "serve --board sim-upper10 -d 1 --listen 127.0.0.1:0 --preview http:0.0.0.0:0 "
+        "--state-dir " +
+        path("preview-state") + " --recordings " + path("preview-takes"));
+    EXPECT_EQ(wide.exitCode, 2) << wide.output;
+    EXPECT_THAT(wide.output, HasSubstr("an MJPEG preview has no password"));
+}
+
 // A trial whose rows are all at rest (or whose markers were never seen) scored 0.000 deg: a
 // perfect filter, over no row at all.
 TEST(FusionScores, ATrialWithNothingToScoreIsSaidNotScoredAsPerfect) {
