@@ -164,6 +164,22 @@ int run(const RunOptions& o) {
             return kExitUsage;
         }
     }
+    // A recording is a new file: what is at --record is said for what it is (a directory, a
+    // device and a FIFO were all "File exists").
+    if (!o.record.empty()) {
+        std::error_code ec;
+        auto target = exporter::regularOutputTarget(o.record);
+        if (!target) {
+            fmt::print(stderr, "caphub run: --record: {}\n", target.error().message);
+            return kExitUsage;
+        }
+        if (fs::exists(fs::symlink_status(o.record, ec))) {
+            fmt::print(stderr,
+                       "caphub run: --record: '{}' exists: a recording never replaces a file\n",
+                       o.record);
+            return kExitUsage;
+        }
+    }
     // The files the capture writes: none of them another's, nor a file it reads, nor a device
     // or a FIFO (the status file used to replace /dev/null, or the recording itself).
     const fs::path statusPath = o.statusFile.empty() ? defaultStatusPath() : fs::path(o.statusFile);

@@ -229,6 +229,10 @@ TEST(RunOutputs, NoOutputReplacesAnotherOrAFileThatIsNotItsOwn) {
     EXPECT_EQ(stranger.exitCode, 2) << stranger.output;
     EXPECT_THAT(stranger.output, HasSubstr("is not a magnetometer state file"));
     EXPECT_EQ(readAll(precious), "precious\n");
+    fs::create_directories(path("a-folder"));
+    const CliRun folder = bounded(run + "--record " + path("a-folder"));
+    EXPECT_EQ(folder.exitCode, 2) << folder.output;
+    EXPECT_THAT(folder.output, HasSubstr("is a directory"));  // was "File exists"
     const CliRun empty = bounded(run + "--record ''");
     EXPECT_EQ(empty.exitCode, 2) << empty.output;
     EXPECT_THAT(empty.output, HasSubstr("an empty path names no file"));
