@@ -80,6 +80,19 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     // times out, and 24 such clients would leave none for anyone else.
     s->server.set_keep_alive_max_count(1);
     s->server.set_payload_max_length(s->options.maxBodyBytes);
+    // Errors the HTTP layer answers itself (an unknown route, a body too large, a request it
+    // cannot read) carry {"error": ...} like every other: they came with an empty body.
+    s->server.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) {
+            return;
+        }
+        const std::string what =
+            res.status == 404   ? fmt::format("no such route: {} {}", req.method, req.path)
+            : res.status == 413 ? std::string("the request body is over its limit")
+            : res.status == 400 ? std::string("the request could not be read")
+                                : fmt::format("HTTP {}", res.status);
+        fail(res, res.status, what);
+    });
     s->server.set_exception_handler(
         [](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
             std::string what = "unknown";

@@ -415,6 +415,13 @@ TEST(Serve, WithoutASessionOrItsCsrfTokenCommandsAreRefusedAndNothingChanges) {
     auto huge = s.post("/api/take/marker", {{"label", std::string(100000, 'x')}});
     ASSERT_TRUE(huge);
     EXPECT_EQ(huge->status, 413);
+    // What the HTTP layer answers itself says why, as every other error does (it was empty).
+    EXPECT_EQ(Json::parse(huge->body).value("error", ""), "the request body is over its limit");
+    auto unknown = anon.Get("/api/no-such-route");
+    ASSERT_TRUE(unknown);
+    EXPECT_EQ(unknown->status, 404);
+    EXPECT_EQ(Json::parse(unknown->body).value("error", ""),
+              "no such route: GET /api/no-such-route");
 
     std::this_thread::sleep_for(milliseconds(300));
     EXPECT_EQ(rig.caps(), 0u);
