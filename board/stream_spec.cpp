@@ -110,10 +110,14 @@ Result<StreamConfig> parseStreamSpec(std::string_view spec) {
     if (host.empty()) {
         return bad(spec, "an empty host");
     }
+    // A name or an address: letters, digits, '.', '-', '_' and (IPv6) ':' and '%' (a zone). A
+    // second '@' made "h@60@70" stream to the host "h@60".
     for (char c : host) {
-        const auto u = static_cast<unsigned char>(c);
-        if (u <= 0x20 || u >= 0x7f) {
-            return bad(spec, "a host with spaces or control characters");
+        const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                        (c >= '0' && c <= '9') || c == '.' || c == '-' || c == '_' || c == ':' ||
+                        c == '%';
+        if (!ok) {
+            return bad(spec, fmt::format("the host '{}' is not a host name or an address", host));
         }
     }
     s.host = std::string(host);

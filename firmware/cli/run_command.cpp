@@ -307,14 +307,19 @@ int run(const RunOptions& o) {
     }
     for (const auto& stream : hub.streams()) {
         const std::string err = stream->lastError();
-        fmt::print(
-            "\nstream {}: {} frames sent ({} datagrams), {} failed{}; latency data-ready -> sent "
-            "p50 {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms",
-            board::toString(stream->config()), stream->sent(), stream->datagrams(),
-            stream->errors(), err.empty() ? "" : " (last: " + err + ")",
-            toSeconds(stream->latencyPercentile(0.5)) * 1e3,
-            toSeconds(stream->latencyPercentile(0.99)) * 1e3,
-            toSeconds(stream->latencyMax()) * 1e3);
+        // Latencies only of frames that went: none sent, none measured (it printed 0.000 ms).
+        const std::string latency =
+            stream->sent() == 0
+                ? std::string("; no latency measured")
+                : fmt::format(
+                      "; latency data-ready -> sent p50 {:.3f} ms, p99 {:.3f} ms, max "
+                      "{:.3f} ms",
+                      toSeconds(stream->latencyPercentile(0.5)) * 1e3,
+                      toSeconds(stream->latencyPercentile(0.99)) * 1e3,
+                      toSeconds(stream->latencyMax()) * 1e3);
+        fmt::print("\nstream {}: {} frames sent ({} datagrams), {} failed{}{}",
+                   board::toString(stream->config()), stream->sent(), stream->datagrams(),
+                   stream->errors(), err.empty() ? "" : " (last: " + err + ")", latency);
     }
     fmt::print(
         "\n{} samples in {:.2f} s, {} dropped{}, {} sensor losses; latency data-ready -> "

@@ -67,6 +67,9 @@ TEST(StreamSpec, RejectsWhatItCannotUseSayingWhat) {
         {"vmc:127.0.0.1:39539@0", "the rate '0'"},
         {"vmc:127.0.0.1:39539@fast", "the rate 'fast'"},
         {"vmc:[::1:39539", "closing ']'"},
+        // A second '@' streamed to the host "h@60".
+        {"vmc:h@60@70", "the host 'h@60' is not a host name or an address"},
+        {"vmc:a/b:9000", "the host 'a/b'"},
     };
     for (const auto& [spec, what] : cases) {
         auto s = board::parseStreamSpec(spec);
