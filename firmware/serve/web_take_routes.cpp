@@ -121,7 +121,11 @@ void WebServer::State::takeRoutes() {
                        }
                        o.unitsPerM = u == "cm" ? 100 : 1;
                    }
-                   o.referenceFrame = req.get_param_value("reference_frame") == "1";
+                   const std::string reference = req.get_param_value("reference_frame");
+                   if (!reference.empty() && reference != "0" && reference != "1") {
+                       error = "reference_frame: expected 0 or 1";  // "2" was taken as 0
+                   }
+                   o.referenceFrame = reference == "1";
                    if (o.referenceFrame && o.format != exporter::Format::Bvh) {
                        error = "reference_frame is for bvh only";
                    }
@@ -129,8 +133,10 @@ void WebServer::State::takeRoutes() {
                        fail(res, 400, error);
                        return;
                    }
+                   // Answered at once: a request waiting up to 30 s for the export before it held a
+                   // worker thread, and 26 of them left none for anyone else.
                    std::unique_lock lock(s->exportMutex, std::defer_lock);
-                   if (!lock.try_lock_for(std::chrono::seconds(30))) {
+                   if (!lock.try_lock()) {
                        res.set_header("Retry-After", "10");
                        fail(res, 503, "another export is running; try again");
                        return;
@@ -159,7 +165,22 @@ void WebServer::State::takeRoutes() {
                    lock.unlock();
                    if (!summary) {
                        fs::remove(out, ec);
-                       failWith(res, summary.error());
+                       // Said of the take and the query's parameters, not of the hub's paths
+                       // and the command line's options.
+                       std::string message = summary.error().message;
+                       for (const auto& [from, to] :
+                            {std::pair<std::string, std::string>{path.string(), name},
+                             {"--rate", "rate"},
+                             {"--from", "from"},
+                             {"--to", "to"}}) {
+                           for (auto at = message.find(from); at != std::string::npos;
+                                at = message.find(from, at + to.size())) {
+                               message.replace(at, from.size(), to);
+                           }
+                       }
+                       // A take with nothing to export (no poses) is the request's, not the hub's.
+                       const int code = summary.error().code;
+                       fail(res, code == ENODATA ? 422 : statusFor(summary.error()), message);
                        return;
                    }
                    res.set_header("X-Caphub-Frames", std::to_string(summary->frames));

@@ -276,6 +276,15 @@ TEST(Serve, RunsCalibrationATakeWithAMarkerAndDownloadsItsExportsEndToEnd) {
     auto mapFile = s.get("/api/takes/" + file + "/export?format=bvh&names=/etc/passwd");
     ASSERT_TRUE(mapFile);
     EXPECT_EQ(mapFile->status, 400);
+    auto reference = s.get("/api/takes/" + file + "/export?format=bvh&reference_frame=2");
+    ASSERT_TRUE(reference);
+    EXPECT_EQ(reference->status, 400);  // was taken as 0
+    // Said of the take and the query, not of the hub's folders and the command line.
+    auto window = s.get("/api/takes/" + file + "/export?format=bvh&from=5&to=1");
+    ASSERT_TRUE(window);
+    EXPECT_EQ(window->status, 400);
+    const std::string why = Json::parse(window->body).value("error", "");
+    EXPECT_EQ(why, "'" + file + "': to 1: expected seconds >= from (5)");
 
     // Deleting needs the name again.
     auto unconfirmed = s.post("/api/takes/" + file + "/delete", {{"confirm", "yes"}});
