@@ -8,6 +8,7 @@
 
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/runtime/status_stage.h"
 #include "hal/core/input_file.h"
 
@@ -77,6 +78,14 @@ int status(const std::string& file) {
                    path.string(), std::chrono::duration_cast<std::chrono::seconds>(age).count());
         return kExitRuntime;
     }
+    // Written "later than now" (a clock set back, or a file touched): not a live hub's.
+    if (!ec && running && age < -std::chrono::seconds(5)) {
+        fmt::print(stderr,
+                   "caphub status: {} is dated {} s in the future: not written by a running hub "
+                   "(or the clock was set back)\n",
+                   path.string(), std::chrono::duration_cast<std::chrono::seconds>(-age).count());
+        return kExitRuntime;
+    }
     return kExitOk;
 }
 
@@ -86,7 +95,8 @@ void addStatusCommand(CLI::App& app, int& exitCode) {
     auto file = std::make_shared<std::string>();
     CLI::App* cmd = app.add_subcommand(
         "status", "The running hub's state as JSON: per-sensor rates, errors, latency, recording");
-    cmd->add_option("--file", *file, "The status file (default: where caphub run keeps it)");
+    cmd->add_option("--file", *file, "The status file (default: where caphub run keeps it)")
+        ->check(nonEmptyPath());
     cmd->callback([&exitCode, file] { exitCode = status(*file); });
 }
 

@@ -293,6 +293,26 @@ TEST(ServePreview, AnMjpegPreviewStaysOnThisMachine) {
     EXPECT_THAT(wide.output, HasSubstr("an MJPEG preview has no password"));
 }
 
+// A status file dated in the future (a clock set back, a file touched) read as a live hub's.
+TEST(StatusInputs, AStatusDatedInTheFutureIsNotALiveHub) {
+    const std::string status = path("future.json");
+    const CliRun run = bounded(
+        "run --board sim-upper10 -d 1 --no-record --no-preview "
+        "--no-stream --status-file " +
+        status);
+    ASSERT_EQ(run.exitCode, 0) << run.output;
+    std::string text = readAll(status);
+    const std::string stopped = "\"running\": false";
+    ASSERT_NE(text.find(stopped), std::string::npos) << text;
+    text.replace(text.find(stopped), stopped.size(), "\"running\": true");
+    std::ofstream(status, std::ios::trunc) << text;
+    EXPECT_EQ(caphub("status --file " + status).exitCode, 0);  // written now: live
+    ASSERT_EQ(shell("touch -d '+1 hour' " + status).exitCode, 0);
+    const CliRun future = caphub("status --file " + status);
+    EXPECT_EQ(future.exitCode, 1) << future.output;
+    EXPECT_THAT(future.output, HasSubstr("in the future"));
+}
+
 // A trial whose rows are all at rest (or whose markers were never seen) scored 0.000 deg: a
 // perfect filter, over no row at all.
 TEST(FusionScores, ATrialWithNothingToScoreIsSaidNotScoredAsPerfect) {
