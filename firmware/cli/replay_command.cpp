@@ -140,8 +140,10 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--speed", o->speed, "Recording seconds per real second (0: no pacing)")
         ->check(zeroOrRange(1e-3, 1e6))
         ->capture_default_str();
+    // Bounded as an export's --rate (the frames are read at it): 1e308 was refused in that
+    // option's words ("--rate 1e+308").
     cmd->add_option("--fps", o->fps, "Frames per second of recording time")
-        ->check(finitePositive())
+        ->check(finiteRange(1e-3, 10000))
         ->capture_default_str();
     cmd->add_option("--preview", o->previews, "png:DIR, fb:/dev/fbN or http:[HOST:]PORT")
         ->required();

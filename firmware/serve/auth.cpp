@@ -35,6 +35,10 @@ bool hasPassword(const fs::path& stateDir) {
 }
 
 Result<void> setPassword(const fs::path& stateDir, const std::string& password) {
+    // The hash takes a C string: the password would end at the NUL.
+    if (password.find('\0') != std::string::npos) {
+        return Error{EINVAL, "the password cannot contain a NUL byte"};
+    }
     if (password.size() < 8 || password.size() > 256) {
         return Error{EINVAL, fmt::format("the password must have 8 to 256 characters ({} given)",
                                          password.size())};

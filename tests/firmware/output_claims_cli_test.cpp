@@ -191,6 +191,8 @@ TEST(NumberOptions, ValuesThatRoundToNothingOrOverflowAreRefused) {
         {"run --board sim-upper10 -d 1 --seed -1 --no-record --no-preview", "is not a seed"},
         {"calibrate gyro --seed ''", "is not a seed"},
         {"run --board '' -d 1 --no-record --no-preview", "an empty path names no file"},
+        // Refused in the words of an export's --rate.
+        {"replay x.cap --fps 1e308 --preview png:x", "--fps: Value 1e308 not in range"},
     };
     for (const auto& c : cases) {
         const CliRun r = bounded(c.args);

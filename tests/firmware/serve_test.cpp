@@ -496,6 +496,10 @@ TEST(Serve, ListeningBeyondThisMachineNeedsAPasswordThatIsThenRequired) {
     EXPECT_NE(refused.error().message.find("--set-password"), std::string::npos);
 
     EXPECT_FALSE(setPassword(rig.stateDir, "short").ok());
+    // The hash takes a C string: this one would have been "abc".
+    const auto nul = setPassword(rig.stateDir, std::string("abc\0defghij", 11));
+    ASSERT_FALSE(nul.ok());
+    EXPECT_EQ(nul.error().message, "the password cannot contain a NUL byte");
     ASSERT_TRUE(setPassword(rig.stateDir, "correct horse").ok());
     EXPECT_EQ(fs::status(passwordFile(rig.stateDir)).permissions() & fs::perms::group_all,
               fs::perms::none);
