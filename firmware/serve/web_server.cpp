@@ -80,6 +80,16 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     // times out, and 24 such clients would leave none for anyone else.
     s->server.set_keep_alive_max_count(1);
     s->server.set_payload_max_length(s->options.maxBodyBytes);
+    // A POST with neither a length nor chunks has no body (RFC 9112 6.3), but the HTTP library
+    // waits for one until its read timeout (5 s), then answers 400: say what is missing at once.
+    s->server.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+        const bool body = req.method == "POST" || req.method == "PUT" || req.method == "PATCH";
+        if (body && !req.has_header("Content-Length") && !req.has_header("Transfer-Encoding")) {
+            fail(res, 411, "a request body needs its Content-Length (0 for none)");
+            return httplib::Server::HandlerResponse::Handled;
+        }
+        return httplib::Server::HandlerResponse::Unhandled;
+    });
     // Errors the HTTP layer answers itself (an unknown route, a body too large, a request it
     // cannot read) carry {"error": ...} like every other: they came with an empty body.
     s->server.set_error_handler([](const httplib::Request& req, httplib::Response& res) {

@@ -295,6 +295,23 @@ TEST(ServePreview, AnMjpegPreviewStaysOnThisMachine) {
     EXPECT_THAT(wide.output, HasSubstr("an MJPEG preview has no password"));
 }
 
+// A POST with neither a length nor chunks waited 5 s for a body, then answered 400 with nothing
+// said; it is answered at once with what is missing.
+TEST(ServeRequests, APostWithoutALengthIsAnsweredAtOnce) {
+    const int port = 20000 + static_cast<int>((::getpid() + 7) % 20000);
+    const std::string p = std::to_string(port);
+    const std::string script =
+        std::string(CAPHUB_BINARY) +
+        " serve --board sim-upper10 --no-preview --listen 127.0.0.1:" + p + " --state-dir " +
+        path("post-state") + " --recordings " + path("post-takes") +
+        " > /dev/null 2>&1 & s=$!; for i in $(seq 300); do (exec 3<>/dev/tcp/127.0.0.1/" + p +
+        ") 2>/dev/null && break; sleep 0.1; done; exec 3<>/dev/tcp/127.0.0.1/" + p +
+        "; printf \"POST /api/take/stop HTTP/1.1\\r\\nHost: 127.0.0.1\\r\\n\\r\\n\" >&3; " +
+        "timeout 3 head -c 12 <&3; echo; kill -TERM $s; wait $s";
+    const CliRun r = shell("timeout -k 3 120 bash -c '" + script + "'");
+    EXPECT_THAT(r.output, HasSubstr("HTTP/1.1 411")) << r.output;
+}
+
 // A status file dated in the future (a clock set back, a file touched) read as a live hub's.
 TEST(StatusInputs, AStatusDatedInTheFutureIsNotALiveHub) {
     const std::string status = path("future.json");
