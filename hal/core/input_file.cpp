@@ -104,6 +104,12 @@ Result<std::string> readInputFile(const std::filesystem::path& path, std::size_t
     if (std::ferror(f.get()) != 0) {
         return errnoError(errno != 0 ? errno : EIO, "read " + quoted(path));
     }
+    // A FIFO nobody writes into reads as empty: said so, rather than as an empty or malformed
+    // file (a status file "not JSON: unexpected end of input").
+    if (text.empty() && S_ISFIFO(st.st_mode)) {
+        return Error{ENODATA,
+                     quoted(path) + " is a FIFO (named pipe) with nothing written into it"};
+    }
     return text;
 }
 

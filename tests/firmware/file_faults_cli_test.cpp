@@ -398,6 +398,12 @@ TEST(FileInputs, AFifoWithoutAWriterIsNotWaitedOn) {
         const CliRun r = shell("timeout 20 " + std::string(CAPHUB_BINARY) + " " + c);
         EXPECT_EQ(r.exitCode, 2) << "caphub " << c << "\n" << r.output;
     }
+    // A text input read whole says it was a FIFO nobody wrote into (a status file was "not
+    // JSON: unexpected end of input").
+    const CliRun status =
+        shell("timeout 20 " + std::string(CAPHUB_BINARY) + " status --file " + fifo);
+    EXPECT_EQ(status.exitCode, 2) << status.output;
+    EXPECT_THAT(status.output, HasSubstr("is a FIFO (named pipe) with nothing written into it"));
 }
 
 // replay --preview png:DIR wrote each frame through a symbolic link of that name (wherever it
