@@ -8,6 +8,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "fusion/body/pose_solver.h"
 
 namespace caphub::firmware {
@@ -193,6 +194,7 @@ void addBoardsCommand(CLI::App& app, int& exitCode) {
     auto file = std::make_shared<std::string>();
     auto quiet = std::make_shared<bool>(false);
     validateCmd->add_option("FILE", *file, "A board file, or the name of a shipped board")
+        ->check(nonEmptyPath())
         ->required();
     validateCmd->add_flag("-q,--quiet", *quiet, "Only report errors and the verdict");
     validateCmd->callback([&exitCode, file, quiet] { exitCode = validate(*file, *quiet); });

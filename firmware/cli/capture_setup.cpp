@@ -35,8 +35,10 @@ void addVirtualSuitOptions(CLI::App& cmd, CaptureSetupOptions& o) {
         ->check(finiteRange(1e-3, 1e6))
         ->capture_default_str();
     cmd.add_option("--bvh", o.bvh,
-                   "Virtual suit: the motion (BVH); default: the shipped walking clip");
-    cmd.add_option("--map", o.map, "Virtual suit: joint-name map (TOML) for the BVH file");
+                   "Virtual suit: the motion (BVH); default: the shipped walking clip")
+        ->check(nonEmptyPath());
+    cmd.add_option("--map", o.map, "Virtual suit: joint-name map (TOML) for the BVH file")
+        ->check(nonEmptyPath());
     cmd.add_option("--profile", o.profile, "Virtual suit: sensor errors: ideal, typical, harsh")
         ->capture_default_str();
     cmd.add_option("--seed", o.seed, "Virtual suit: seed of the sensor errors")

@@ -358,7 +358,8 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                     "nominal mountings)")
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
-                    "Sensor calibration file (caphub calibrate) applied before the filters");
+                    "Sensor calibration file (caphub calibrate) applied before the filters")
+        ->check(nonEmptyPath());
     cmd->add_option("--pose-rate", o->poseRateHz, "Poses per second of the body solver")
         ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();
@@ -366,11 +367,13 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                     "The body's skeleton: clip (measured from the clip, as the subject's own "
                     "lengths would be) or board (the board's [subject] proportions)")
         ->capture_default_str();
-    cmd->add_option("--json", o->json, "Also write the scores to this JSON file");
+    cmd->add_option("--json", o->json, "Also write the scores to this JSON file")
+        ->check(nonEmptyPath());
     cmd->add_option("--mag-state", o->magState,
                     "The online hard-iron estimators' sums of the sensors whose magnetometer the "
                     "--calibration file does not correct: read before each clip when the file "
-                    "exists, written after it (docs/fusion.md, \"No magnetometer calibration\")");
+                    "exists, written after it (docs/fusion.md, \"No magnetometer calibration\")")
+        ->check(nonEmptyPath());
     cmd->add_flag("--no-body-aiding", o->noBodyAiding,
                   "Do not tell the filters the body's acceleration (from the foot contacts): "
                   "to see what it does");

@@ -134,6 +134,7 @@ void addExportCommand(CLI::App& app, int& exitCode) {
     cmd->add_option("--names", a->names,
                     "Joint names: hanim, cmu, unity, opensim (sto: OpenSim model bodies), or a "
                     "TOML map file (segment = \"name\")")
+        ->check(nonEmptyPath())
         ->capture_default_str();
     cmd->add_option("--units", a->units, "Length unit of bvh and csv")
         ->check(CLI::IsMember({"m", "cm"}))

@@ -427,7 +427,8 @@ void addImportCommand(CLI::App& app, int& exitCode) {
         ->required();
     cmd->add_option("--map", a->map,
                     "TOML: height_m = H and a [sensors] table of sensor id = \"segment\" "
-                    "(required for Xsens; BROAD: overrides the files' segments)");
+                    "(required for Xsens; BROAD: overrides the files' segments)")
+        ->check(nonEmptyPath());
     cmd->add_option("--format", a->format,
                     "xsens, broad, or auto (broad for a folder or .csv/.csv.gz files)")
         ->check(CLI::IsMember({"auto", "xsens", "broad"}))

@@ -294,7 +294,8 @@ void addReprocessCommand(CLI::App& app, int& exitCode) {
                     "(tn: give it twice)")
         ->check(finiteNonNegative());
     cmd->add_option("--calibration", a->calibration,
-                    "Sensor calibration file (caphub calibrate) instead of the recording's");
+                    "Sensor calibration file (caphub calibrate) instead of the recording's")
+        ->check(nonEmptyPath());
     cmd->add_option("--pose-rate", a->poseRateHz, "Poses per second")
         ->check(finiteRange(1.0, 1000.0))
         ->capture_default_str();

@@ -402,7 +402,8 @@ void addRunCommand(CLI::App& app, int& exitCode) {
         ->check(finitePositive())
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
-                    "Calibration file (caphub calibrate) applied before the filter and recorded");
+                    "Calibration file (caphub calibrate) applied before the filter and recorded")
+        ->check(nonEmptyPath());
     cmd->callback([&exitCode, o] { exitCode = run(*o); });
 }
 

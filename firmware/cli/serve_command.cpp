@@ -338,7 +338,8 @@ void addServeCommand(CLI::App& app, int& exitCode) {
                     "The hub's state: password hash, calibration.toml (default: "
                     "$CAPHUB_STATE_DIR, /var/lib/caphub, ~/.local/state/caphub)")
         ->check(nonEmptyPath());
-    cmd->add_option("--web-root", o->webRoot, "The web page's files (default: the installed ones)");
+    cmd->add_option("--web-root", o->webRoot, "The web page's files (default: the installed ones)")
+        ->check(nonEmptyPath());
     cmd->add_flag("--set-password", o->setPassword,
                   "Read a password from stdin, store its hash in the state folder, and exit");
     cmd->add_option("-d,--duration", o->durationS, "Seconds to run (0: until SIGTERM or Ctrl-C)")
@@ -361,7 +362,8 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->capture_default_str();
     cmd->add_option("--calibration", o->calibration,
                     "Sensor calibration file (default: calibration.toml in the state folder, "
-                    "when there is one)");
+                    "when there is one)")
+        ->check(nonEmptyPath());
     cmd->add_option("--preview", o->previews,
                     "More preview outputs: png:DIR, fb:/dev/fbN, http:[HOST:]PORT (repeatable)");
     cmd->add_option("--preview-fps", o->previewFps, "Preview frames per second")

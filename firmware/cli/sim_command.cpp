@@ -16,6 +16,7 @@
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/data_dir.h"
+#include "firmware/cli/number_checks.h"
 #include "firmware/cli/suit_options.h"
 #include "firmware/export/output_file.h"
 #include "firmware/export/partial_output.h"
@@ -373,12 +374,14 @@ void addSimCommand(CLI::App& app, int& exitCode) {
     auto o = std::make_shared<SimOptions>();
     CLI::App* cmd = app.add_subcommand(
         "sim", "Play a BVH clip on the virtual suit; write sensor streams in the BROAD layout");
-    cmd->add_option("--bvh", o->bvh, "The motion (BVH); default: the shipped walking clip");
+    cmd->add_option("--bvh", o->bvh, "The motion (BVH); default: the shipped walking clip")
+        ->check(nonEmptyPath());
     addSuitOptions(*cmd, o->suit);
     cmd->add_option("--sensor", o->sensor, "The sensor to write: its segment or its name");
     cmd->add_flag("--all", o->all, "Write every sensor, and the ground-truth skeleton");
     cmd->add_option("--calibration", o->calibration,
-                    "Apply this calibration file (caphub calibrate) to the streams written");
+                    "Apply this calibration file (caphub calibrate) to the streams written")
+        ->check(nonEmptyPath());
     cmd->add_option("-o,--out", o->out, "FILE.csv.gz for --sensor, a folder for --all");
     cmd->callback([&exitCode, o] { exitCode = sim(*o); });
 }

@@ -7,7 +7,8 @@
 namespace caphub::firmware {
 
 void addSuitOptions(CLI::App& cmd, SuitCliOptions& o) {
-    cmd.add_option("--map", o.map, "Joint-name map (TOML); default: detect a built-in preset");
+    cmd.add_option("--map", o.map, "Joint-name map (TOML); default: detect a built-in preset")
+        ->check(nonEmptyPath());
     cmd.add_option("-b,--board", o.board, "A board whose buses are all simulated")
         ->check(nonEmptyPath())
         ->capture_default_str();

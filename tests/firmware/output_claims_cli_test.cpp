@@ -191,6 +191,11 @@ TEST(NumberOptions, ValuesThatRoundToNothingOrOverflowAreRefused) {
         {"run --board sim-upper10 -d 1 --seed -1 --no-record --no-preview", "is not a seed"},
         {"calibrate gyro --seed ''", "is not a seed"},
         {"run --board '' -d 1 --no-record --no-preview", "an empty path names no file"},
+        // An empty path fell back to the default clip, map or calibration (none).
+        {"sim --sensor pelvis --bvh ''", "--bvh: an empty path names no file"},
+        {"run --board sim-upper10 -d 1 --no-record --calibration ''",
+         "--calibration: an empty path names no file"},
+        {"boards validate ''", "FILE: an empty path names no file"},
         // Refused in the words of an export's --rate.
         {"replay x.cap --fps 1e308 --preview png:x", "--fps: Value 1e308 not in range"},
     };
