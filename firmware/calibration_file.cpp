@@ -10,7 +10,6 @@
 #include <Eigen/SVD>
 #include <fmt/format.h>
 #include <toml++/toml.h>
-#include <unistd.h>
 
 #include "hal/core/input_file.h"
 #include "hal/core/output_fd.h"
@@ -334,36 +333,7 @@ Result<void> writeCalibrationFile(const std::filesystem::path& given, const Cali
                                            : given;
     // Written whole: into PATH.part (a regular file, never through a link or into a FIFO), renamed
     // over the file when complete, so that a failed or interrupted write leaves it as it was.
-    const std::filesystem::path part = path.string() + ".part";
-    auto fd = createOutputFd(part);
-    if (!fd) {
-        return fd.error();
-    }
-    std::size_t written = 0;
-    while (written < text.size()) {
-        const ssize_t n = ::write(*fd, text.data() + written, text.size() - written);
-        if (n < 0 && errno == EINTR) {
-            continue;
-        }
-        if (n <= 0) {
-            const int err = n < 0 ? errno : EIO;
-            ::close(*fd);
-            ::unlink(part.c_str());
-            return errnoError(err, fmt::format("write '{}'", part.string()));
-        }
-        written += static_cast<std::size_t>(n);
-    }
-    if (::close(*fd) != 0) {
-        const int err = errno;
-        ::unlink(part.c_str());
-        return errnoError(err, fmt::format("write '{}'", part.string()));
-    }
-    if (::rename(part.c_str(), path.c_str()) != 0) {
-        const int err = errno;
-        ::unlink(part.c_str());
-        return errnoError(err, fmt::format("rename '{}' to '{}'", part.string(), path.string()));
-    }
-    return {};
+    return replaceFileWhole(path, path.string() + ".part", text);
 }
 
 std::vector<std::optional<fusion::SensorCalibration>> calibrationsFor(

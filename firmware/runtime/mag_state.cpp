@@ -1,16 +1,15 @@
 #include "firmware/runtime/mag_state.h"
 
 #include <cerrno>
-#include <cstring>
 #include <sstream>
 
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include "hal/core/input_file.h"
 #include "hal/core/log.h"
+#include "hal/core/output_fd.h"
 
 namespace caphub::firmware {
 
@@ -26,27 +25,6 @@ constexpr std::string_view kHeaderStart = "# caphub online hard- and soft-iron e
 constexpr std::string_view kHeader =
     "# caphub online hard- and soft-iron estimators (docs/fusion.md): sensor, anchor (3), "
     "moments (55), alignment moments (15), samples\n";
-
-Error sysError(const std::string& what, const fs::path& path) {
-    const int e = errno;
-    return Error{e, fmt::format("{} '{}': {}", what, path.string(), std::strerror(e))};
-}
-
-// Writes all of `text` to fd.
-bool writeAll(int fd, const std::string& text) {
-    std::size_t done = 0;
-    while (done < text.size()) {
-        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-        if (n < 0 && errno == EINTR) {
-            continue;
-        }
-        if (n <= 0) {
-            return false;
-        }
-        done += static_cast<std::size_t>(n);
-    }
-    return true;
-}
 
 }  // namespace
 
@@ -150,27 +128,7 @@ Result<void> writeMagStateFile(const fs::path& path, const std::string& text) {
     }
     // Per process: two hubs sharing a path never write into each other's file.
     const fs::path tmp = fs::path(path.string() + "." + std::to_string(::getpid()) + ".tmp");
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644);
-    if (fd < 0) {
-        return sysError("create", tmp);
-    }
-    if (!writeAll(fd, text) || ::fsync(fd) != 0) {
-        Error e = sysError("write", tmp);
-        ::close(fd);
-        ::unlink(tmp.c_str());
-        return e;
-    }
-    if (::close(fd) != 0) {
-        Error e = sysError("close", tmp);
-        ::unlink(tmp.c_str());
-        return e;
-    }
-    if (::rename(tmp.c_str(), path.c_str()) != 0) {
-        Error e = sysError("rename to", path);
-        ::unlink(tmp.c_str());
-        return e;
-    }
-    return {};
+    return replaceFileWhole(path, tmp, text, true);
 }
 
 MagStateStage::MagStateStage(const board::Board& board, const FusionStage& fusion, fs::path path,

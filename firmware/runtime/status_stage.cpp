@@ -1,9 +1,7 @@
 #include "firmware/runtime/status_stage.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdlib>
-#include <fstream>
 
 #include <nlohmann/json.hpp>
 #include <sys/stat.h>
@@ -216,33 +214,10 @@ void StatusStage::writeFile(const std::string& text) {
         ec = std::make_error_code(std::errc::invalid_argument);
     }
     // Per process: two captures sharing a status path never write into each other's file.
-    const fs::path tmp = fs::path(path_.string() + "." + std::to_string(getpid()) + ".tmp");
     if (!ec) {
-        if (auto fd = createOutputFd(tmp); !fd) {
-            ec = std::error_code(fd.error().code, std::generic_category());
-        } else {
-            std::size_t done = 0;
-            while (!ec && done < text.size()) {
-                const ssize_t n = ::write(*fd, text.data() + done, text.size() - done);
-                if (n < 0 && errno == EINTR) {
-                    continue;
-                }
-                if (n <= 0) {
-                    ec = std::error_code(n < 0 ? errno : EIO, std::generic_category());
-                } else {
-                    done += static_cast<std::size_t>(n);
-                }
-            }
-            if (::close(*fd) != 0 && !ec) {
-                ec = std::error_code(errno, std::generic_category());
-            }
-        }
-        if (!ec) {
-            fs::rename(tmp, path_, ec);
-        }
-        if (ec) {
-            std::error_code ignored;
-            fs::remove(tmp, ignored);
+        const fs::path tmp = fs::path(path_.string() + "." + std::to_string(getpid()) + ".tmp");
+        if (auto written = replaceFileWhole(path_, tmp, text); !written) {
+            ec = std::error_code(written.error().code, std::generic_category());
         }
     }
     if (ec && error_.empty()) {

@@ -24,4 +24,46 @@ Result<int> createOutputFd(const std::filesystem::path& path) {
     return fd;
 }
 
+Result<void> replaceFileWhole(const std::filesystem::path& path,
+                              const std::filesystem::path& temporary, std::string_view text,
+                              bool durable) {
+    auto fd = createOutputFd(temporary);
+    if (!fd) {
+        return fd.error();
+    }
+    const auto failed = [&](const std::string& what) {
+        const Error e = errnoError(errno != 0 ? errno : EIO, what);
+        ::unlink(temporary.c_str());
+        return e;
+    };
+    std::size_t done = 0;
+    while (done < text.size()) {
+        const ssize_t n = ::write(*fd, text.data() + done, text.size() - done);
+        if (n < 0 && errno == EINTR) {
+            continue;
+        }
+        if (n <= 0) {
+            if (n == 0) {
+                errno = EIO;
+            }
+            const Error e = failed("write '" + temporary.string() + "'");
+            ::close(*fd);
+            return e;
+        }
+        done += static_cast<std::size_t>(n);
+    }
+    if (durable && ::fsync(*fd) != 0) {
+        const Error e = failed("write '" + temporary.string() + "'");
+        ::close(*fd);
+        return e;
+    }
+    if (::close(*fd) != 0) {
+        return failed("write '" + temporary.string() + "'");
+    }
+    if (::rename(temporary.c_str(), path.c_str()) != 0) {
+        return failed("rename '" + temporary.string() + "' to '" + path.string() + "'");
+    }
+    return {};
+}
+
 }  // namespace caphub

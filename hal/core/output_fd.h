@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string_view>
 
 #include "hal/core/error.h"
 
@@ -13,5 +14,12 @@ namespace caphub {
 // closes the descriptor. Errors: "create 'P': Too many levels of symbolic links" for a link,
 // "create 'P': 'P' is not a regular file" (EINVAL) for a device or a FIFO.
 Result<int> createOutputFd(const std::filesystem::path& path);
+
+// Replaces `path` with `text` as a whole: written into `temporary` (created as above), flushed to
+// the disk first when `durable`, then renamed over `path`. On any failure the temporary is removed
+// and `path` is as it was. Errors: "create 'T': ...", "write 'T': ...", "rename 'T' to 'P': ...".
+Result<void> replaceFileWhole(const std::filesystem::path& path,
+                              const std::filesystem::path& temporary, std::string_view text,
+                              bool durable = false);
 
 }  // namespace caphub
