@@ -2,6 +2,8 @@
 // (web_state.h).
 #include "firmware/serve/web_server.h"
 
+#include <cmath>
+
 #include <fmt/format.h>
 #include <sys/socket.h>
 
@@ -54,6 +56,9 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     if (options.threads < 4 || options.maxStreams < 1 || options.maxStreams > options.threads - 2) {
         return Error{EINVAL, "expected at least 4 threads and at most threads - 2 streams"};
     }
+    if (!(options.requestTimeoutS >= 0.001 && options.requestTimeoutS <= 3600)) {
+        return Error{EINVAL, "expected a request timeout of 0.001 to 3600 s"};
+    }
     const bool password = hasPassword(options.stateDir);
     if (!isLoopbackHost(options.host) && !password) {
         return Error{EPERM, fmt::format("listening on {} (not this machine only) needs a password: "
@@ -76,6 +81,8 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     };
     s->server.set_read_timeout(s->options.timeoutS, 0);
     s->server.set_write_timeout(s->options.timeoutS, 0);
+    s->server.setRequestTimeout(std::chrono::milliseconds(
+        static_cast<long long>(std::llround(s->options.requestTimeoutS * 1000))));
     // One request per connection: an idle keep-alive connection holds a worker thread until it
     // times out, and 24 such clients would leave none for anyone else.
     s->server.set_keep_alive_max_count(1);

@@ -38,6 +38,9 @@ struct WebOptions {
     int maxStreams = 12;
     std::size_t maxBodyBytes = 16 * 1024;
     int timeoutS = 5;
+    // A request (line, headers and body) must arrive within this of its connection's accept: a
+    // client sending it a byte at a time would otherwise hold a worker for as long as it likes.
+    double requestTimeoutS = 10;
     double stateHz = 4;                              // how often the state is read from the Hub
     double poseHz = 30;                              // poses per second on /api/poses
     std::shared_ptr<render::JpegFrameSlot> preview;  // null: no preview

@@ -30,6 +30,7 @@
 
 #include "firmware/cli/info.h"
 #include "firmware/serve/auth.h"
+#include "firmware/serve/request_deadline.h"
 #include "firmware/serve/web_server.h"
 
 namespace caphub::firmware::serve {
@@ -66,7 +67,7 @@ struct WebServer::State {
     Hub& hub;
     const board::Board& board;
     WebOptions options;
-    httplib::Server server;
+    RequestDeadlineServer server;
     std::thread listener;
     std::thread stateReader;
     int port = 0;

@@ -19,10 +19,15 @@
 #include <iostream>
 #include <thread>
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
 #include <nlohmann/json.hpp>
+#include <poll.h>
+#include <sys/socket.h>
 #include <tiny_gltf.h>
+#include <unistd.h>
 
 #include "board/loader.h"
 #include "board/sim/bvh.h"
@@ -52,7 +57,8 @@ struct ServeRig {
 
     std::shared_ptr<render::JpegFrameSlot> preview = std::make_shared<render::JpegFrameSlot>();
 
-    explicit ServeRig(const std::string& name, const std::string& password = {})
+    explicit ServeRig(const std::string& name, const std::string& password = {},
+                      double requestTimeoutS = 10)
         : clock(MonotonicClock().now(), 1.0),
           dir(fs::path(::testing::TempDir()) / ("caphub-serve-" + name)),
           recordings(dir / "recordings"),
@@ -82,6 +88,7 @@ struct ServeRig {
         w.version = "serve-test";
         w.stateHz = 10;
         w.preview = preview;
+        w.requestTimeoutS = requestTimeoutS;
         auto started = WebServer::start(*hub, board, w);
         EXPECT_TRUE(started.ok()) << started.error().message;
         if (started) {
@@ -533,6 +540,77 @@ TEST(Serve, ListeningBeyondThisMachineNeedsAPasswordThatIsThenRequired) {
     Session right((*web)->port(), "correct horse");
     EXPECT_FALSE(right.csrf.empty());
     EXPECT_TRUE(right.state().contains("sensors"));
+}
+
+// A connection to the server's port that sends `head` and then one byte every `everyMs` until
+// the server closes it or `forMs` have passed; returns how long the server kept it (ms).
+int trickle(int port, const std::string& head, int everyMs, int forMs) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto since = [&t0] {
+        return static_cast<int>(
+            std::chrono::duration_cast<milliseconds>(std::chrono::steady_clock::now() - t0)
+                .count());
+    };
+    if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+        ::close(fd);
+        return -1;
+    }
+    bool open = ::send(fd, head.data(), head.size(), MSG_NOSIGNAL) > 0;
+    while (open && since() < forMs) {
+        pollfd p{fd, POLLIN, 0};
+        if (::poll(&p, 1, everyMs) > 0) {
+            char c;
+            open = ::recv(fd, &c, 1, MSG_DONTWAIT) > 0;  // closed (or an answer: the end)
+            break;
+        }
+        open = ::send(fd, "x", 1, MSG_NOSIGNAL) == 1;
+    }
+    const int held = since();
+    ::close(fd);
+    return held;
+}
+
+// Clients sending their requests a byte at a time (slowloris) held every worker for as long as
+// they kept sending: the page and the API went unanswered. A request must now arrive within
+// its deadline (here 2 s), after which its connection is closed and the worker freed.
+TEST(Serve, ClientsSendingTheirRequestsAByteAtATimeDoNotHoldTheWorkers) {
+    ServeRig rig("slow-requests", {}, 2.0);
+    Session s(rig.port());
+    constexpr int kSlow = 30;  // more than the 24 workers
+    std::vector<int> held(kSlow, 0);
+    std::vector<std::thread> slow;
+    for (int i = 0; i < kSlow; ++i) {
+        slow.emplace_back([&, i] {
+            held[static_cast<std::size_t>(i)] = trickle(
+                rig.port(), "GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ", 300, 12000);
+        });
+    }
+    std::this_thread::sleep_for(milliseconds(500));  // every worker reading a slow request
+    const auto t0 = std::chrono::steady_clock::now();
+    httplib::Client c("127.0.0.1", rig.port());
+    c.set_read_timeout(20, 0);
+    c.set_connection_timeout(20, 0);
+    auto r = c.Get("/api/state", s.headers());
+    const double waitedS =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    for (auto& t : slow) {
+        t.join();
+    }
+    EXPECT_EQ(status(r).substr(0, 3), "200") << status(r);
+    // Answered once the slow requests' deadline freed a worker: about 1.5 s, not the 12 s they
+    // would have gone on for.
+    EXPECT_LT(waitedS, 5.0);
+    for (int i = 0; i < kSlow; ++i) {
+        EXPECT_GE(held[static_cast<std::size_t>(i)], 0) << "client " << i << " did not connect";
+        EXPECT_LT(held[static_cast<std::size_t>(i)], 6000) << "client " << i;
+    }
+    std::cout << "a request among " << kSlow << " trickling clients answered in " << waitedS
+              << " s\n";
 }
 
 TEST(Serve, FiftyConcurrentClientsAreAllServedWhileTheCaptureLosesNoSample) {
