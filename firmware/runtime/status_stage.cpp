@@ -202,7 +202,8 @@ std::string statusJson(const StatusSnapshot& s) {
     } else {
         doc["recording"] = nullptr;
     }
-    return doc.dump(2) + "\n";
+    // A byte that is not UTF-8 (a path) is written as U+FFFD: the JSON library throws on it.
+    return doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 void StatusStage::writeFile(const std::string& text) {

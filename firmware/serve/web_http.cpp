@@ -16,7 +16,9 @@ namespace fs = std::filesystem;
 void reply(httplib::Response& res, int status, const Json& body) {
     res.status = status;
     res.set_header("Cache-Control", "no-store");
-    res.set_content(body.dump(), "application/json");
+    // Bytes that are not UTF-8 (a request's path echoed, a file name) as U+FFFD: the JSON
+    // library throws on them, and from an error handler that ended the process.
+    res.set_content(body.dump(-1, ' ', false, Json::error_handler_t::replace), "application/json");
 }
 
 void fail(httplib::Response& res, int status, const std::string& message) {

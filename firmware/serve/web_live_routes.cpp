@@ -111,7 +111,7 @@ void WebServer::State::readStateLoop() {
         static_cast<int>(1000.0 / std::clamp(options.stateHz, 0.5, 50.0)));
     for (;;) {
         const HubState h = hub.state();
-        std::string text = buildState(h).dump();
+        std::string text = buildState(h).dump(-1, ' ', false, Json::error_handler_t::replace);
         {
             std::lock_guard lock(mutex);
             stateJson = std::move(text);

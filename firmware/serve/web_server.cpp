@@ -150,7 +150,8 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     }
     // The first state document is built before any request can come: an early client (the
     // page loading as the hub starts) never gets an empty one.
-    s->stateJson = s->buildState(s->hub.state()).dump();
+    s->stateJson =
+        s->buildState(s->hub.state()).dump(-1, ' ', false, Json::error_handler_t::replace);
     s->stateReader = std::thread([s] { s->readStateLoop(); });
     s->listener = std::thread([s] { s->server.listen_after_bind(); });
     for (int i = 0; i < 2000 && !s->server.is_running(); ++i) {

@@ -490,6 +490,30 @@ TEST(Serve, DownloadsComeOnlyFromTheRecordingsFolder) {
     EXPECT_EQ(list->body.find("link.cap"), std::string::npos);
 }
 
+// A byte that is not UTF-8 in a path echoed into an error (`GET /%FF`, no login needed) threw
+// from the JSON library inside the HTTP library's error handler, where nothing catches: the
+// hub aborted, taking the capture with it. A take whose file name is not UTF-8 made the take
+// list a 500. Both are answered, the bytes replaced by U+FFFD.
+TEST(Serve, BytesThatAreNotUtf8AreAnsweredNotFatal) {
+    ServeRig rig("utf8");
+    httplib::Client anyone("127.0.0.1", rig.port());
+    auto bad = anyone.Get("/%FF");
+    ASSERT_TRUE(bad) << "no answer: the server is gone";
+    EXPECT_EQ(bad->status, 404);
+    const Json error = Json::parse(bad->body);
+    EXPECT_EQ(error["error"].get<std::string>(), "no such route: GET /\xEF\xBF\xBD");
+    auto after = anyone.Get("/api/session");
+    ASSERT_TRUE(after) << "the server did not survive";
+    EXPECT_EQ(after->status, 200);
+
+    Session s(rig.port());
+    std::ofstream(rig.recordings / "\xE9t\xE9.cap") << "a take named in Latin-1";
+    auto list = s.get("/api/takes");
+    ASSERT_TRUE(list) << "no answer";
+    EXPECT_EQ(list->status, 200) << list->body;
+    EXPECT_NE(list->body.find("\xEF\xBF\xBDt\xEF\xBF\xBD.cap"), std::string::npos) << list->body;
+}
+
 TEST(Serve, ListeningBeyondThisMachineNeedsAPasswordThatIsThenRequired) {
     ServeRig rig("password");
     WebOptions w;
