@@ -6,6 +6,8 @@
 #
 #   flash_test.sh BUILD_DIR WORK_DIR
 #
+# CAPHUB_FLASH=FILE tests another caphub-flash (e.g. an older one) than toolchain/'s;
+# CAPHUB_FLASH_DEB=FILE a .deb made elsewhere instead of packaging BUILD_DIR with cpack.
 # The image's dpkg database declares the base libraries installed (libc6, libstdc++6, ...);
 # every other dependency of the package is given as a small stand-in .deb this test builds,
 # so that the dependency path of the tool is exercised without network access.
@@ -14,7 +16,7 @@ set -euo pipefail
 build=$1
 work=$2
 src=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
-flash=$src/toolchain/caphub-flash
+flash=$(realpath "${CAPHUB_FLASH:-$src/toolchain/caphub-flash}")
 rm -rf "$work"
 mkdir -p "$work"
 cd "$work"
@@ -26,10 +28,15 @@ fail() {
 }
 
 # 1. The package, from this build.
-cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/pkg" >cpack.log 2>&1 || {
-    tail -20 cpack.log
-    exit 1
-}
+if [ -n "${CAPHUB_FLASH_DEB:-}" ]; then
+    mkdir -p "$work/pkg"
+    cp "$CAPHUB_FLASH_DEB" "$work/pkg/"
+else
+    cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/pkg" >cpack.log 2>&1 || {
+        tail -20 cpack.log
+        exit 1
+    }
+fi
 deb=$(ls "$work"/pkg/caphub_*.deb)
 arch=$(dpkg-deb -f "$deb" Architecture)
 echo "package: $(basename "$deb")"
@@ -104,13 +111,19 @@ for p in "${base[@]}"; do
     printf 'Package: %s\nStatus: install ok installed\nVersion: 1\nArchitecture: %s\nDescription: base\n\n' "$p" "$a"
 done >rootfs/var/lib/dpkg/status
 printf '# Raspberry Pi settings\narm_64bit=1\n' >boot/config.txt
-truncate -s 58M disk.img
-printf 'label: dos\nstart=2048, size=32768, type=c\nstart=34816, type=83\n' | sfdisk -q disk.img
-mkfs.vfat -C boot.img 16384 >/dev/null
-mcopy -i boot.img boot/config.txt ::config.txt
-mkfs.ext4 -q -d rootfs -L rootfs root.img 40M
-dd if=boot.img of=disk.img bs=512 seek=2048 conv=notrunc status=none
-dd if=root.img of=disk.img bs=512 seek=34816 conv=notrunc status=none
+make_image() { # OUT ROOT_TREE CONFIG_TXT
+    rm -rf img.tmp && mkdir img.tmp
+    truncate -s 58M "$1"
+    printf 'label: dos\nstart=2048, size=32768, type=c\nstart=34816, type=83\n' | sfdisk -q "$1"
+    mkfs.vfat -C img.tmp/boot.img 16384 >/dev/null
+    mcopy -i img.tmp/boot.img "$3" ::config.txt
+    mkfs.ext4 -q -d "$2" -L rootfs img.tmp/root.img 40M
+    dd if=img.tmp/boot.img of="$1" bs=512 seek=2048 conv=notrunc status=none
+    dd if=img.tmp/root.img of="$1" bs=512 seek=34816 conv=notrunc status=none
+    rm -rf img.tmp
+}
+make_image disk.img rootfs boot/config.txt
+cp disk.img fresh.img # for the cases of 7.
 root="disk.img?offset=$((34816 * 512))"
 boot="disk.img@@$((2048 * 512))"
 
@@ -204,6 +217,189 @@ if e2fsck -fn "$(dd if=disk.img of=root.check bs=512 skip=34816 status=none && e
     pass "the root file system is consistent (e2fsck -fn)"
 else
     fail "e2fsck: $(tail -5 e2fsck.log)"
+fi
+
+if rd /var/lib/dpkg/info/caphub.list | grep -qx /etc/caphub/caphub.conf; then
+    pass "after a re-flash caphub.list still names the kept conffile /etc/caphub/caphub.conf"
+else
+    fail "caphub.list lacks /etc/caphub/caphub.conf after the re-flash"
+fi
+caphub_ids=$(rd /etc/passwd | awk -F: '$1=="caphub"{print $3, $4}')
+state_ids=$(debugfs -R 'stat /var/lib/caphub' "$root" 2>/dev/null | awk '/Type: directory/ { d = 1 } /^User: / && d { print $2, $4 }')
+if [ -n "$caphub_ids" ] && [ "$state_ids" = "$caphub_ids" ]; then
+    pass "/var/lib/caphub is a folder owned by caphub ($caphub_ids) before the service's first start"
+else
+    fail "/var/lib/caphub: owner '$state_ids', caphub is '$caphub_ids'"
+fi
+if [ "$(sed -n '/^# caphub begin/{n;p;q}' config.out)" = "[all]" ]; then
+    pass "config.txt's caphub block starts with [all]"
+else
+    fail "config.txt's block does not start with [all]: $(cat config.out)"
+fi
+
+# 7. Images and arguments the tool must handle or refuse cleanly. Each case flashes a copy of the
+# fresh image (or one built for it) and checks the outcome independently.
+ri() { debugfs -R "cat \"$2\"" "$1?offset=$((34816 * 512))" 2>/dev/null; } # IMAGE PATH
+bi() { mcopy -n -i "$1@@$((2048 * 512))" ::config.txt - 2>/dev/null; }   # IMAGE
+run() { # ARGS...: the tool's output in $out, its exit code in $rc
+    set +e
+    out=$("$flash" "$@" 2>&1)
+    rc=$?
+    set -e
+}
+
+# passwd and group without a final newline (hand-edited): the new entries are lines of their own.
+rm -rf rootfs-nl && cp -a rootfs rootfs-nl
+printf 'root:x:0:0:root:/root:/bin/bash\npi:x:1000:1000:,,,:/home/pi:/bin/bash' >rootfs-nl/etc/passwd
+printf 'root:x:0:\nvideo:x:44:pi\nshadow:x:42:\npi:x:1000:' >rootfs-nl/etc/group
+make_image nl.img rootfs-nl boot/config.txt
+run --image nl.img --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 0 ] && ri nl.img /etc/passwd | grep -qx 'pi:x:1000:1000:,,,:/home/pi:/bin/bash' &&
+    ri nl.img /etc/passwd | grep -q '^caphub:x:[0-9]*:[0-9]*:.*:/usr/sbin/nologin$' &&
+    ri nl.img /etc/group | grep -qx 'pi:x:1000:' && ri nl.img /etc/group | grep -q '^i2c:x:[0-9]*:caphub$'; then
+    pass "passwd/group without a final newline: no entry is joined to the last line"
+else
+    fail "passwd/group without a final newline: exit $rc, passwd: $(ri nl.img /etc/passwd | tr '\n' '|') group: $(ri nl.img /etc/group | tr '\n' '|') output: $out"
+fi
+
+# A full boot partition: refused before anything is written, config.txt kept.
+{
+    printf '# Raspberry Pi settings\narm_64bit=1\nenable_uart=1\n'
+    # 1.9 KiB: one 2 KiB cluster now, two with the board's lines
+    for _ in $(seq 40); do echo '# the user comments of a well-kept config.txt'; done
+} >config-full.txt
+make_image full.img rootfs config-full.txt
+head -c "$(mdir -i "full.img@@$((2048 * 512))" :: | sed -n 's/ bytes free$//p' | tr -cd '0-9')" /dev/zero >fill.bin
+mcopy -i "full.img@@$((2048 * 512))" fill.bin ::fill.bin
+rm -f fill.bin
+run --image full.img --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 1 ] && [[ "$out" == *"boot partition has 0 bytes free"*"nothing was changed"* ]] &&
+    bi full.img | cmp -s - config-full.txt && [ -z "$(ri full.img /usr/bin/caphub)" ]; then
+    pass "a full boot partition is refused (exit 1) before anything is written; config.txt kept"
+else
+    fail "full boot partition: exit $rc, config.txt $(bi full.img | cmp -s - config-full.txt && echo kept || echo changed/lost), output: $out"
+fi
+
+# "# caphub begin" without "# caphub end": refused (exit 2) naming the line; nothing changed.
+printf 'arm_64bit=1\n# caphub begin: old\ndtparam=i2c_arm=on\nenable_uart=1\ngpu_mem=128\n' >config-open.txt
+make_image open.img rootfs config-open.txt
+run --image open.img --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 2 ] && [[ "$out" == *"'# caphub begin' at line 2 without '# caphub end'"* ]] &&
+    bi open.img | cmp -s - config-open.txt && [ -z "$(ri open.img /usr/bin/caphub)" ]; then
+    pass "an unterminated caphub block is refused (exit 2, line 2), nothing written"
+else
+    fail "unterminated caphub block: exit $rc, config.txt: $(bi open.img | tr '\n' '|') output: $out"
+fi
+
+# config.txt ending in a conditional section: the block starts with [all]; on a re-flash the
+# user's lines after the old block stay in [all].
+printf 'arm_64bit=1\n[pi4]\ndtoverlay=vc4-fkms-v3d\nmax_framebuffers=2\n' >config-pi4.txt
+make_image pi4.img rootfs config-pi4.txt
+run --image pi4.img --board rpi-zero2w-suit --deb "$deb" --deps deps
+rc1=$rc
+bi pi4.img >config-pi4.out
+if [ $rc1 -eq 0 ] && [ "$(sed -n '/^# caphub begin/{n;p;q}' config-pi4.out)" = "[all]" ]; then
+    pass "after a [pi4] section the caphub block starts with [all]"
+else
+    fail "[pi4] section: exit $rc1, config.txt: $(tr '\n' '|' <config-pi4.out)"
+fi
+echo 'gpu_mem=99' >>config-pi4.out
+mcopy -o -i "pi4.img@@$((2048 * 512))" config-pi4.out ::config.txt
+run --image pi4.img --board rpi-zero2w-suit --deb "$deb" --deps deps
+if [ $rc -eq 0 ] && bi pi4.img | grep -B1 -x 'gpu_mem=99' | head -1 | grep -qx '\[all\]' &&
+    [ "$(bi pi4.img | grep -c '^# caphub begin')" = 1 ] && [ "$(bi pi4.img | tail -1)" = "# caphub end" ]; then
+    pass "a re-flash keeps the user's lines after the old block in [all]"
+else
+    fail "re-flash after [pi4]: exit $rc, config.txt: $(bi pi4.img | tr '\n' '|')"
+fi
+
+# --root mode into a folder tree: installs (relative symbolic links are the card's own) ...
+rm -rf card && mkdir -p card/boot && cp -a rootfs card/root && cp boot/config.txt card/boot/
+mkdir -p card/root/usr/lib/udev && ln -s usr/lib/udev card/root/udev-link
+run --root card/root --boot card/boot --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 0 ] && cmp -s card/root/etc/caphub/board.toml "$src/board/rpi4-suit.toml" &&
+    [ "$(stat -c '%u %g' card/root/var/lib/caphub)" = "$(awk -F: '$1=="caphub"{print $3, $4}' card/root/etc/passwd)" ] &&
+    grep -qx '\[all\]' card/boot/config.txt; then
+    pass "--root mode installs into a mounted tree, /var/lib/caphub owned by caphub"
+else
+    fail "--root mode: exit $rc, output: $out"
+fi
+# ... but refuses an absolute symbolic link on the card, which the host would resolve to its own
+# files (exit 2), writing nothing anywhere.
+rm -rf card && mkdir -p card/boot victim && cp -a rootfs card/root && cp boot/config.txt card/boot/
+echo 'a host file' >victim/board.toml
+ln -s "$work/victim" card/root/etc/caphub
+run --root card/root --boot card/boot --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 2 ] && [[ "$out" == *"/etc/caphub leads to $work/victim, outside"* ]] &&
+    [ "$(cat victim/board.toml)" = 'a host file' ] && [ "$(ls victim)" = board.toml ] &&
+    [ ! -e card/root/usr/bin/caphub ] && cmp -s card/boot/config.txt boot/config.txt; then
+    pass "--root mode refuses a card symbolic link leading out of the card (exit 2), nothing written"
+else
+    fail "--root symlink escape: exit $rc, host folder: $(find victim | tr '\n' ' ') board.toml: $(head -1 victim/board.toml) output: $out"
+fi
+
+# A nearly full root file system: refused before writing (never a half-installed package that
+# dpkg calls installed).
+cp fresh.img rootfull.img
+rf="rootfull.img?offset=$((34816 * 512))"
+free_kib=$(debugfs -R 'stats -h' "$rf" 2>/dev/null | awk '/^Free blocks:/ { f = $3 } /^Block size:/ { b = $3 } END { print int(f * b / 1024) }')
+head -c "$(((free_kib - 1024) * 1024))" /dev/zero | tr '\0' x >fill.bin # (zeros would be holes)
+debugfs -w -R "write fill.bin fill" "$rf" >/dev/null 2>&1
+rm -f fill.bin
+run --image rootfull.img --board rpi4-suit --deb "$deb" --deps deps
+if [ $rc -eq 1 ] && [[ "$out" == *"root file system has"*"nothing was changed"* ]] &&
+    ! ri rootfull.img /var/lib/dpkg/status | grep -q '^Package: caphub$' && [ -z "$(ri rootfull.img /usr/bin/caphub)" ] &&
+    bi rootfull.img | cmp -s - boot/config.txt; then
+    pass "a nearly full root file system is refused (exit 1) before anything is written"
+else
+    fail "full root file system: exit $rc, dpkg status: $(ri rootfull.img /var/lib/dpkg/status | grep -A1 '^Package: caphub$' | tr '\n' ' ') output: $out"
+fi
+
+# --board is the name of one of the package's board files, not a path.
+mkdir -p evil && printf '[board]\nname = "evil"\n' >evil/x.toml && echo 'dtoverlay=evil' >evil/x.config.txt
+cp fresh.img board.img
+run --image board.img --board "../../../../../../../../..$work/evil/x" --deb "$deb" --deps deps
+if [ $rc -eq 2 ] && [[ "$out" == *"not a board name"* ]] && [ -z "$(ri board.img /usr/bin/caphub)" ]; then
+    pass "--board with a path is refused (exit 2)"
+else
+    fail "--board path: exit $rc, output: $out"
+fi
+
+# Image paths with a '?' (debugfs' option separator), "@@" (mtools' offset) and a leading '-'.
+mkdir -p 'q?x' 'a@@1'
+cp fresh.img 'q?x/disk.img'
+cp fresh.img 'a@@1/disk.img'
+cp fresh.img ./-d.img
+for img in 'q?x/disk.img' 'a@@1/disk.img' -d.img; do
+    run --image "$img" --board rpi4-suit --deb "$deb" --deps deps
+    ln -sfn "$work/$img" check.img # a name debugfs takes as it is
+    if [ $rc -eq 0 ] && ri check.img /usr/bin/caphub | cmp -s - caphub.bin; then
+        pass "an image path like '$img' works"
+    else
+        fail "image path '$img': exit $rc, output: $out"
+    fi
+done
+run --image fresh.img --board
+if [ $rc -eq 2 ] && [[ "$out" == *"--board needs a value"* ]]; then
+    pass "an option without its value is a usage error (exit 2)"
+else
+    fail "option without a value: exit $rc, output: $out"
+fi
+
+# The package's postinst makes /var/lib/caphub for caphub (commands stubbed, nothing changed).
+mkdir -p postinst-run/bin postinst-run/ctl
+dpkg-deb -e "$deb" postinst-run/ctl
+for c in getent addgroup adduser mkdir chown udevadm deb-systemd-helper systemctl; do
+    printf '#!/bin/sh\necho "%s $*" >>"%s"\n' "$c" "$work/postinst-run/calls" >"postinst-run/bin/$c"
+    chmod +x "postinst-run/bin/$c"
+done
+rm -f postinst-run/calls
+if PATH="$work/postinst-run/bin" /bin/sh postinst-run/ctl/postinst configure >postinst-run/log 2>&1 &&
+    grep -qx 'chown caphub:caphub /var/lib/caphub' postinst-run/calls &&
+    { [ -d /var/lib/caphub ] || grep -q '^mkdir .*/var/lib/caphub$' postinst-run/calls; }; then
+    pass "postinst configure makes /var/lib/caphub owned by caphub"
+else
+    fail "postinst: $(cat postinst-run/log postinst-run/calls 2>/dev/null | tr '\n' '|')"
 fi
 
 echo "flash test: $failures failure(s)"
