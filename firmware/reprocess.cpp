@@ -130,6 +130,9 @@ public:
     std::vector<std::vector<Entry>> perSensor;
     std::vector<std::size_t> cursor;
 
+    // From the start again, for another pass over the recording.
+    void rewind() { std::fill(cursor.begin(), cursor.end(), 0); }
+
     Eigen::Quaternionf lookup(const SensorSample& s, const Eigen::Quaternionf& filtered) {
         if (s.sensor < 0 || static_cast<std::size_t>(s.sensor) >= perSensor.size()) {
             return filtered;
@@ -556,6 +559,21 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
             }
         }
         smoothed = smoothAll(board, source, calibrations, aid, o);
+        // The feet's dead reckoning between their still instants, with the smoothed
+        // orientations: what each stretch ended with, taken off along it in the output pass
+        // (docs/reprocess.md, "The feet between their still instants").
+        auto logs = std::make_shared<body::FootStretchLogs>();
+        BodyStage::Options feetOptions = bodyOptions;
+        feetOptions.footStretches = logs;
+        Pass feet(board, nullptr, calibrations, t0, feetOptions);
+        feet.fusion.overrideOrientations(
+            [&smoothed](const SensorSample& s, const Eigen::Quaternionf& q) {
+                return smoothed.lookup(s, q);
+            });
+        run(feet, nullptr, "feet", {});
+        smoothed.rewind();
+        logs->use = body::FootStretchUse::Correct;
+        bodyOptions.footStretches = logs;
     }
     ForwardingSink sink(out);
     Pass pass(board, &sink, calibrations, t0, bodyOptions);

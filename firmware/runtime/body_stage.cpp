@@ -39,6 +39,7 @@ body::BodyTrackerOptions trackerOptions(const BodyStage::Options& o) {
     t.footInertialOptions = o.footInertialOptions;
     t.kneeHeading = o.kneeHeading;
     t.knownHeadingErrorRad = o.knownHeadingErrorRad;
+    t.footStretches = o.footStretches;
     return t;
 }
 

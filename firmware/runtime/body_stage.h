@@ -43,6 +43,8 @@ public:
         // corrected live once known), or a correction known from the whole take (reprocess).
         body::KneeHeadingMode kneeHeading = body::KneeHeadingMode::Estimate;
         std::optional<double> knownHeadingErrorRad;
+        // Offline: the feet's stretches recorded, or corrected from a pass before (null live).
+        std::shared_ptr<body::FootStretchLogs> footStretches;
     };
 
     // fusion must be added to the capture before this stage (it reads its latest orientations,

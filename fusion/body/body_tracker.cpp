@@ -75,6 +75,12 @@ BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> se
     kneeHeading_ = KneeHeading(options_.kneeHeadingOptions);
     footInertial_ = {FootInertial(options_.footInertialOptions),
                      FootInertial(options_.footInertialOptions)};
+    if (options_.footStretches) {
+        for (std::size_t k = 0; k < 2; ++k) {
+            footInertial_[k].useStretchLog(&options_.footStretches->feet[k],
+                                           options_.footStretches->use);
+        }
+    }
     out_.pose = &solver_.pose();
     if (options_.solveUncalibrated) {
         // No calibration pose: the nominal mountings, the subject facing north.

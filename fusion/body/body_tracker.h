@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,12 @@ struct TrackedSensor {
     Vec3d positionM = Vec3d::Zero();            // on the segment, in its frame (the feet's)
 };
 
+// Offline: both feet's stretch logs (FootStretchLog) and what a pass does with them.
+struct FootStretchLogs {
+    std::array<FootStretchLog, 2> feet;  // left, right
+    FootStretchUse use = FootStretchUse::Record;
+};
+
 struct BodyTrackerOptions {
     double rateHz = 60;  // the pose grid: poses per second
     // Before any body calibration: solve poses on the nominal mountings, the subject facing
@@ -43,6 +50,9 @@ struct BodyTrackerOptions {
     // Track each foot sensor's velocity from the foot's latest still instant (FootInertial).
     bool footInertial = true;
     FootInertialOptions footInertialOptions;
+    // Offline (reprocess --smooth): record the feet's stretches, or correct them from a pass
+    // before with the same samples and orientations. Null live.
+    std::shared_ptr<FootStretchLogs> footStretches;
     // A sensor whose latest update is older than this at a pose's time has stopped reporting
     // without being declared offline: its segment is not valid in that pose. 0.25 s is 25
     // sample periods at 100 Hz, far beyond the skew between buses.
@@ -213,6 +223,10 @@ public:
     // to add), from the samples since it; none before they have turned enough, or for a
     // calibration it does not apply to (KneeHeadingMode).
     std::optional<double> kneeHeadingError() const;
+    // Offline: whether both feet's stretches matched their logs (FootStretchUse::Correct).
+    bool footStretchesMatched() const {
+        return footInertial_[0].stretchLogMatched() && footInertial_[1].stretchLogMatched();
+    }
     // Body calibrations completed so far.
     int calibrations() const { return calibrations_; }
     Duration period() const { return period_; }
@@ -322,6 +336,7 @@ private:
     bool kneeHeadingDone_ = false;
     int calibrations_ = 0;  // completed
     std::array<FootInertial, 2> footInertial_;
+
     // Each foot's state after its latest samples: a pose is solved at the watermark, up to a
     // sample interval after its grid time, and takes the feet as they were at the grid time.
     std::array<FootStateHistory, 2> footHistory_;

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstddef>
 #include <optional>
+#include <vector>
 
 #include "fusion/body/skeleton.h"
 #include "hal/core/time.h"
@@ -29,7 +30,33 @@ struct FootInertialOptions {
     // the velocity need only be right to a few tenths of a metre a second.
     double maxKnownSpanS = 1.5;
     double gravityMps2 = 9.81;
+    // Offline: a stretch's recorded error is taken off along it when the stretch is at most
+    // this long (s). Its error grows with the square of the time as the orientation's error
+    // grows; over a stride the linear part (the accelerometer's bias, the tilt's error at the
+    // start) dominates, over seconds not.
+    double maxCorrectedSpanS = 2.0;
+    // ... and when its error is one the integration could have made: at most this acceleration
+    // over the stretch (m/s^2). 0.5: gravity read 3 deg off (9.81 sin 3 deg = 0.51), beyond the
+    // filters' tilt on a limb in motion; a larger end velocity over a short stretch is the foot
+    // still moving (turning on its sole: 0.7 rad/s at 0.1 m is 0.07 m/s) at the instant the
+    // update called still.
+    double maxErrorAccelerationMps2 = 0.5;
 };
+
+// What each of a foot's stretches between still instants ended with: the velocity the
+// zero-velocity update at its end took away (the integration's error, as the foot was still),
+// and the stretch's length. Offline (`caphub reprocess --smooth`) one pass over a take records
+// them and the next pass, fed the same samples and orientations, takes each stretch's error off
+// along it (docs/reprocess.md, "The feet between their still instants").
+struct FootStretchLog {
+    struct Stretch {
+        Vec3d endVelocityMps = Vec3d::Zero();
+        double durationS = -1;  // < 0: cut short by a reset (no still instant ended it)
+    };
+    std::vector<Stretch> stretches;
+};
+
+enum class FootStretchUse { Record, Correct };
 
 class FootInertial {
 public:
@@ -40,6 +67,13 @@ public:
     void add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Vec3d& rateRadS, double dtS);
     // Forget the motion (a sensor lost, a new capture): invalid until the foot is still again.
     void reset();
+    // Offline: record each stretch's end into `log`, or take the errors it recorded off the
+    // velocity, the error of a stretch growing linearly from its start (a constant acceleration
+    // error: a bias, a tilt) to its end. A stretch whose length differs from the recorded one
+    // (not the same samples) stops the corrections. `log` outlives the dead reckoning.
+    void useStretchLog(FootStretchLog* log, FootStretchUse use);
+    // Correct: whether the stretches met so far matched the log.
+    bool stretchLogMatched() const { return logMatched_; }
 
     // Integrated from a still instant no longer than maxSpanS ago.
     bool valid() const { return started_ && sinceStillS_ <= options_.maxSpanS; }
@@ -48,18 +82,30 @@ public:
     bool still() const { return still_; }
     // The sensor's velocity (m/s) and rate (rad/s) in ENU at the latest sample: with them, the
     // velocity of any point of the rigid foot.
-    const Vec3d& velocityEnuMps() const { return velocity_; }
+    const Vec3d& velocityEnuMps() const { return reported_; }
     const Vec3d& rateEnuRadS() const { return rateEnu_; }
 
 private:
+    void beginStretch();
+    void endStretch(const Vec3d& endVelocityMps, double durationS);
+
     FootInertialOptions options_;
     Vec3d velocity_ = Vec3d::Zero();
+    Vec3d reported_ = Vec3d::Zero();  // velocity_ less the stretch's error so far (Correct)
     Vec3d lastAcceleration_ = Vec3d::Zero();
     Vec3d rateEnu_ = Vec3d::Zero();
     double sinceStillS_ = 0;
     double quietForS_ = -1;  // how long the samples have been quiet; < 0: the latest was not
     bool still_ = false;
     bool started_ = false;  // a still instant since the reset
+    bool moving_ = false;   // a sample in motion since the latest still instant
+
+    FootStretchLog* log_ = nullptr;
+    FootStretchUse use_ = FootStretchUse::Record;
+    std::size_t stretch_ = 0;          // the stretch the foot is in (or the next one)
+    Vec3d errorRate_ = Vec3d::Zero();  // the stretch's recorded error per second
+    double correctedSpanS_ = 0;        // its recorded length (0: no correction)
+    bool logMatched_ = true;
 };
 
 // A foot's dead reckoning as it stood after one of its samples.

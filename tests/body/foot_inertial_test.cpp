@@ -2,7 +2,9 @@
 // acceleration from the latest still instant, and the velocity is trusted only for a while.
 #include "fusion/body/foot_inertial.h"
 
+#include <cmath>
 #include <numbers>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -113,6 +115,105 @@ TEST(FootInertial, AResetForgetsTheMotion) {
     EXPECT_FALSE(f.valid());
     EXPECT_FALSE(f.known());
     EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
+}
+
+// A stride's dead reckoning: still, then a swing whose true velocity rises and falls back to
+// zero, read with an accelerometer error `bias` (world frame), then still again.
+void stride(FootInertial& f, const Vec3d& bias, std::vector<Vec3d>* velocities = nullptr) {
+    holdStill(f, 3);
+    for (int k = 0; k < 80; ++k) {
+        const double s = std::sin(2 * std::numbers::pi * k / 80.0);
+        move(f, Vec3d(3 * s, 0, 1.5 * s) + bias, 1);
+        if (velocities != nullptr) {
+            velocities->push_back(f.velocityEnuMps());
+        }
+    }
+    holdStill(f, 3);
+}
+
+// Offline: a pass records what each stretch ended with, the next takes it off along the
+// stretch. With a constant accelerometer error the corrected velocity is the error-free one.
+TEST(FootInertial, AStretchsRecordedErrorIsTakenOffAlongItInTheNextPass) {
+    const Vec3d bias(0.3, -0.2, 0.1);
+    std::vector<Vec3d> truth;
+    {
+        FootInertial clean;
+        stride(clean, Vec3d::Zero(), &truth);
+        stride(clean, Vec3d::Zero());
+    }
+    FootStretchLog log;
+    FootInertial record;
+    record.useStretchLog(&log, FootStretchUse::Record);
+    std::vector<Vec3d> raw;
+    stride(record, bias, &raw);
+    stride(record, bias);
+    ASSERT_EQ(log.stretches.size(), 2u);
+    // 80 samples in motion: the error of 80 intervals (half of one at each end, where the
+    // acceleration ramps from and to a still sample's), over 82 (the two quiet samples that make
+    // the still instant).
+    EXPECT_LT((log.stretches[0].endVelocityMps - bias * (80 * kDt)).norm(), 1e-9)
+        << log.stretches[0].endVelocityMps.transpose();
+    EXPECT_NEAR(log.stretches[0].durationS, 82 * kDt, 1e-12);
+    EXPECT_GT((raw[60] - truth[60]).norm(), 0.15);  // what is to be corrected
+
+    FootInertial corrected;
+    corrected.useStretchLog(&log, FootStretchUse::Correct);
+    std::vector<Vec3d> fixed;
+    stride(corrected, bias, &fixed);
+    ASSERT_EQ(fixed.size(), truth.size());
+    for (std::size_t k = 0; k < fixed.size(); ++k) {
+        // The error taken off grows evenly over the 82 intervals, the error itself over 80: off
+        // by at most two intervals' worth (the raw velocity is off by up to 80).
+        EXPECT_LT((fixed[k] - truth[k]).norm(), 2 * bias.norm() * kDt) << k;
+    }
+    EXPECT_TRUE(corrected.stretchLogMatched());
+    EXPECT_EQ(corrected.velocityEnuMps(), Vec3d::Zero());  // still
+}
+
+// Samples that are not the recorded ones (another stride length) stop the corrections instead
+// of taking a stranger's error off.
+TEST(FootInertial, AStretchLogOfOtherSamplesIsNotApplied) {
+    FootStretchLog log;
+    FootInertial record;
+    record.useStretchLog(&log, FootStretchUse::Record);
+    holdStill(record, 3);
+    move(record, Vec3d(1, 0, 0), 50);
+    holdStill(record, 3);
+    move(record, Vec3d(1, 0, 0), 50);
+    holdStill(record, 3);
+    ASSERT_EQ(log.stretches.size(), 2u);
+
+    FootInertial other;
+    other.useStretchLog(&log, FootStretchUse::Correct);
+    holdStill(other, 3);
+    move(other, Vec3d(1, 0, 0), 30);  // shorter than the first recorded stretch
+    holdStill(other, 3);
+    EXPECT_FALSE(other.stretchLogMatched());
+    move(other, Vec3d(1, 0, 0), 50);
+    // Uncorrected: the plain integration (49.5 intervals of 1 m/s^2).
+    EXPECT_NEAR(other.velocityEnuMps().x(), 49.5 * kDt, 1e-9);
+}
+
+// A short stretch ending faster than the dead reckoning could err (the foot still turning on its
+// sole at the instant called still) is real motion: not taken off.
+TEST(FootInertial, AnEndVelocityNoErrorCouldMakeIsNotTakenOff) {
+    FootInertialOptions o;
+    FootStretchLog log;
+    FootInertial record(o);
+    record.useStretchLog(&log, FootStretchUse::Record);
+    holdStill(record, 3);
+    move(record, Vec3d(4, 0, 0), 5);  // 0.07 s ending at about 0.2 m/s
+    holdStill(record, 3);
+    ASSERT_EQ(log.stretches.size(), 1u);
+    const FootStretchLog::Stretch& st = log.stretches[0];
+    ASSERT_GT(st.endVelocityMps.norm(), o.maxErrorAccelerationMps2 * st.durationS);
+
+    FootInertial replayed(o);
+    replayed.useStretchLog(&log, FootStretchUse::Correct);
+    holdStill(replayed, 3);
+    move(replayed, Vec3d(4, 0, 0), 4);
+    EXPECT_NEAR(replayed.velocityEnuMps().x(), 4 * 3.5 * kDt, 1e-9);  // as integrated
+    EXPECT_TRUE(replayed.stretchLogMatched());
 }
 
 FootSample stateAt(int ms, double vx, bool still = false) {
