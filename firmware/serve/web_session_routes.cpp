@@ -68,6 +68,9 @@ std::optional<Json> WebServer::State::parseBody(const httplib::Request& req,
         fail(res, 400, "request body: expected a JSON object");
     } catch (const Json::parse_error& e) {
         fail(res, 400, fmt::format("request body: not JSON: {}", e.what()));
+    } catch (const Json::exception& e) {
+        // A number no double holds (1e400) and the like: the client's error, not the hub's.
+        fail(res, 400, fmt::format("request body: {}", e.what()));
     }
     return std::nullopt;
 }
@@ -134,6 +137,14 @@ void WebServer::State::sessionRoutes() {
     server.Post("/api/login", [s](const httplib::Request& req, httplib::Response& res) {
         if (!s->passwordRequired && !isLoopbackHost(hostOf(req.get_header_value("Host")))) {
             fail(res, 403, "this hub has no password: only http://127.0.0.1 may use it");
+            return;
+        }
+        // Only as JSON: a page on another site can send text/plain or a form to this address
+        // without asking (no CORS preflight), and 32 such logins evicted the user's session
+        // from the table; a JSON body needs the preflight this server never grants.
+        const std::string type = req.get_header_value("Content-Type");
+        if (type.substr(0, type.find(';')) != "application/json") {
+            fail(res, 415, "a login is a JSON body (Content-Type: application/json)");
             return;
         }
         auto b = s->parseBody(req, res);

@@ -514,6 +514,56 @@ TEST(Serve, BytesThatAreNotUtf8AreAnsweredNotFatal) {
     EXPECT_NE(list->body.find("\xEF\xBF\xBDt\xEF\xBF\xBD.cap"), std::string::npos) << list->body;
 }
 
+// A login is JSON only: a page on another site can POST text/plain here without asking, and
+// 32 such logins evicted the user's session. One range per download: 500 overlapping ranges
+// sent a take 500 times over. A number no double holds in a body was a 500.
+TEST(Serve, CrossSiteLoginsManyRangesAndHugeNumbersAreRefused) {
+    ServeRig rig("refusals");
+    httplib::Client c("127.0.0.1", rig.port());
+    auto plain = c.Post("/api/login", "{}", "text/plain");
+    ASSERT_TRUE(plain);
+    EXPECT_EQ(plain->status, 415) << plain->body;
+    EXPECT_FALSE(plain->has_header("Set-Cookie"));
+    auto form = c.Post("/api/login", "password=x", "application/x-www-form-urlencoded");
+    ASSERT_TRUE(form);
+    EXPECT_EQ(form->status, 415) << form->body;
+    Session s(rig.port());  // application/json: logs in
+
+    std::string take(1000, 'x');
+    for (std::size_t i = 0; i < take.size(); ++i) {
+        take[i] = static_cast<char>('a' + i % 26);
+    }
+    std::ofstream(rig.recordings / "ranges.cap", std::ios::binary) << take;
+    const auto ranged = [&](const std::string& range) {
+        httplib::Headers h = s.headers();
+        h.emplace("Range", range);
+        return s.client.Get("/api/takes/ranges.cap/raw", h);
+    };
+    auto one = ranged("bytes=10-19");
+    ASSERT_TRUE(one);
+    EXPECT_EQ(one->status, 206);
+    EXPECT_EQ(one->body, take.substr(10, 10));
+    std::string many = "bytes=0-999";
+    for (int i = 0; i < 100; ++i) {
+        many += ",0-999";
+    }
+    auto amplified = ranged(many);
+    ASSERT_TRUE(amplified);
+    EXPECT_EQ(amplified->status, 416);
+    EXPECT_LT(amplified->body.size(), 200u);
+    auto none = ranged("bytes=-0");
+    ASSERT_TRUE(none);
+    EXPECT_EQ(none->status, 416);
+    auto whole = s.get("/api/takes/ranges.cap/raw");
+    ASSERT_TRUE(whole);
+    EXPECT_EQ(whole->body, take);
+
+    auto overflow = s.client.Post("/api/calibrate", s.headers(),
+                                  R"({"pose": "tpose", "countdown_s": 1e400})", "application/json");
+    ASSERT_TRUE(overflow);
+    EXPECT_EQ(overflow->status, 400) << overflow->body;
+}
+
 TEST(Serve, ListeningBeyondThisMachineNeedsAPasswordThatIsThenRequired) {
     ServeRig rig("password");
     WebOptions w;
