@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "board/loader.h"
 #include "hal/core/input_file.h"
 
 namespace caphub::firmware {
@@ -75,6 +76,27 @@ public:
         return v;
     }
 
+    // "// Update Rate: 100.0Hz" from `at` (where "Update Rate:" starts): the imported chip's
+    // 1 to 10000 Hz, written with a point and followed by Hz alone ("59,94Hz" read as 59).
+    Result<double> updateRate(int line, std::string_view l, std::size_t at) const {
+        const std::string_view rest = l.substr(at + 12);
+        std::size_t b = 0;
+        while (b < rest.size() && rest[b] == ' ') {
+            ++b;
+        }
+        double hz = 0;
+        const auto [ptr, ec] = std::from_chars(rest.data() + b, rest.data() + rest.size(), hz);
+        std::string_view unit(ptr, static_cast<std::size_t>(rest.data() + rest.size() - ptr));
+        while (!unit.empty() && (unit.front() == ' ' || unit.back() == ' ')) {
+            unit = unit.front() == ' ' ? unit.substr(1) : unit.substr(0, unit.size() - 1);
+        }
+        if (ec != std::errc() || (unit != "Hz" && unit != "hz") || !(hz >= 1 && hz <= 10000)) {
+            return error(line, static_cast<int>(at + 13 + b),
+                         "Update Rate: expected a rate of 1 to 10000 Hz such as 100.0Hz");
+        }
+        return hz;
+    }
+
     Result<XsensFile> run(const std::string& text) {
         XsensFile f;
         f.path = path_;
@@ -97,20 +119,18 @@ public:
             if (!header) {
                 if (l.rfind("//", 0) == 0) {
                     if (const auto at = l.find("Update Rate:"); at != std::string_view::npos) {
-                        const std::string_view rest = l.substr(at + 12);
-                        std::size_t b = 0;
-                        while (b < rest.size() && rest[b] == ' ') {
-                            ++b;
+                        auto hz = updateRate(line, l, at);
+                        if (!hz) {
+                            return hz.error();
                         }
-                        double hz = 0;
-                        const auto [ptr, ec] =
-                            std::from_chars(rest.data() + b, rest.data() + rest.size(), hz);
-                        if (ec != std::errc() || !(hz > 0 && hz <= 10000)) {
-                            return error(line, static_cast<int>(at + 13 + b),
-                                         "Update Rate: expected a rate in Hz such as 100.0Hz");
+                        if (f.rateHz > 0 && *hz != f.rateHz) {
+                            return error(line, static_cast<int>(at) + 1,
+                                         fmt::format("a second Update Rate ({:g} Hz after {:g} "
+                                                     "Hz): which one the samples were taken at "
+                                                     "is not known",
+                                                     *hz, f.rateHz));
                         }
-                        (void)ptr;
-                        f.rateHz = hz;
+                        f.rateHz = *hz;
                     }
                     continue;
                 }
@@ -119,7 +139,13 @@ public:
                 }
                 f.separator = l.find('\t') != std::string_view::npos ? '\t' : ',';
                 for (const auto& c : splitCells(l, f.separator)) {
-                    col.emplace(std::string(c.text), static_cast<int>(names.size()));
+                    if (!c.text.empty() &&
+                        !col.emplace(std::string(c.text), static_cast<int>(names.size())).second) {
+                        return error(line, c.column,
+                                     fmt::format("a second {} column: which one holds the "
+                                                 "readings is not known",
+                                                 c.text));
+                    }
                     names.emplace_back(c.text);
                 }
                 for (const char* need :
@@ -292,6 +318,12 @@ Result<XsensFile> readXsensText(const std::filesystem::path& path) {
     auto text = readInputFile(path);
     if (!text) {
         return text.error();
+    }
+    // The device id names the sensor in the board the import makes, and files after it.
+    if (const std::string problem = board::nameProblem("the Xsens device", xsensDeviceId(path));
+        !problem.empty()) {
+        return Error{EINVAL, fmt::format("{}: {} (from the file name's last '_' part)",
+                                         path.string(), problem)};
     }
     return Parser(path.string()).run(*text);
 }

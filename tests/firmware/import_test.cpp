@@ -189,6 +189,69 @@ TEST(XsensText, AValueNoSampleCanHoldIsRefusedWithItsCell) {
                                      ": Acc_Y: 1e39 is out of range (at most 1e+06 either way)");
 }
 
+// The rate line read leniently gave wrong sample times: "59,94Hz" was 59 Hz, a second rate line
+// won silently, 0.5 Hz was found only by the board made from it ("imported board:21:10", exit
+// 1); a column given twice used the first silently; a device id that cannot name a sensor broke
+// the generated board's TOML.
+TEST(XsensText, AmbiguousRatesColumnsAndDeviceIdsAreRefusedWhereTheyAre) {
+    auto rows = lines(readAll(kShank));
+    rows.resize(12);
+    ASSERT_NE(rows[1].find("Update Rate: 100.0Hz"), std::string::npos) << rows[1];
+    const auto refused = [&](const std::string& name, const std::vector<std::string>& r,
+                             const std::string& says) {
+        const std::string p = writeLines(name, r);
+        auto f = caphub::firmware::readXsensText(p);
+        ASSERT_FALSE(f.ok()) << name;
+        EXPECT_THAT(f.error().message, HasSubstr(p + says)) << name;
+    };
+    const std::size_t at = rows[1].find("Update Rate:");
+    const std::string column = ":2:" + std::to_string(at + 14);
+    auto comma = rows;
+    comma[1].replace(comma[1].find("100.0Hz"), 7, "59,94Hz");
+    refused("MT_comma_00B421AF.txt", comma, column + ": Update Rate: expected a rate of 1 to");
+    auto slow = rows;
+    slow[1].replace(slow[1].find("100.0Hz"), 7, "0.5Hz");
+    refused("MT_slow_00B421AF.txt", slow, column + ": Update Rate: expected a rate of 1 to");
+    auto twice = rows;
+    twice.insert(twice.begin() + 2, "// Update Rate: 7.0Hz");
+    refused("MT_twice_00B421AF.txt", twice,
+            ":3:" + std::to_string(twice[2].find("Update") + 1) +
+                ": a second Update Rate (7 Hz after 100 Hz)");
+    auto same = rows;
+    same.insert(same.begin() + 2, "// Update Rate: 100.0Hz");
+    EXPECT_TRUE(caphub::firmware::readXsensText(writeLines("MT_same_00B421AF.txt", same)).ok());
+
+    auto dup = rows;
+    std::string& header = dup[5];
+    const std::size_t acc = header.find("Acc_X");
+    ASSERT_NE(acc, std::string::npos);
+    header.replace(header.find("Acc_Y"), 5, "Acc_X");
+    refused("MT_dup_00B421AF.txt", dup,
+            ":6:" + std::to_string(header.find("Acc_X", acc + 1) + 1) + ": a second Acc_X column");
+
+    auto good = caphub::firmware::readXsensText(writeLines("MT_x_00B4\"21AF.txt", rows));
+    ASSERT_FALSE(good.ok());
+    EXPECT_THAT(good.error().message, HasSubstr("the Xsens device name '00B4\"21AF'"));
+}
+
+// A 2 kHz take (an MTi-600's rate) was refused by the bus budget of the board the import makes
+// for itself, whose buses are simulated: they have no clock now.
+TEST(ImportCli, AnXsensTakeAtTwoKilohertzImports) {
+    std::string text = readAll(kShank);
+    const std::string from = "Update Rate: 100.0Hz";
+    ASSERT_NE(text.find(from), std::string::npos);
+    text.replace(text.find(from), from.size(), "Update Rate: 2000.0Hz");
+    const std::string p = temp("fast_" + fs::path(kShank).filename().string());
+    std::ofstream(p, std::ios::binary | std::ios::trunc) << text;
+    const std::string map = temp("map1.toml");
+    std::ofstream(map) << "height_m = 1.80\n[sensors]\n00B421AF = \"r_calf\"\n";
+    const std::string out = temp("fast.cap");
+    fs::remove(out);
+    const CliRun r = caphub("import " + p + " --map " + map + " -o " + out);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("at 2000 Hz on r_calf"));
+}
+
 // Xsens MTw run at 40, 60, 80 or 120 Hz too: the imported board's sensors take any rate (they
 // used to be ICM-20948s, which cannot run at 60 Hz, and the import failed on its own board).
 TEST(ImportCli, AnXsensTakeAtSixtyHertzImportsAndReprocesses) {
