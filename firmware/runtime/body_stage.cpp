@@ -144,7 +144,9 @@ void BodyStage::publish(const body::TrackedPose& p, Timestamp newest, std::uint3
     frame_.newestSampleT = newest;
     frame_.rootM = p.pose->positionM[0].cast<float>();
     frame_.notMeasured = notMeasured;
-    frame_.bodyCalibrated = tracker_.calibrated();
+    // A calibration done, not the nominal mountings solved on (which the tracker counts as
+    // calibrated: it poses on them): what the streams' flags say (docs/streams.md).
+    frame_.bodyCalibrated = tracker_.calibrations() > 0;
     // The world orientations from the joints as recorded (held ones included), so that the
     // two agree; the joint centres are the solver's.
     for (std::size_t j = 0; j < joints_.size(); ++j) {

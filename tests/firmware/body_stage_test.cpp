@@ -531,6 +531,38 @@ TEST(BodyStage, SolvesEachPoseForItsGridTimeBetweenTheSensorsSamples) {
     EXPECT_LT(meanAbsDeviation, 0.1);
 }
 
+// The streams' "calibrated" flags (VMC's calibration state, caphub's frame) said calibrated on
+// the nominal mountings (`run --calibrate none`): the published frames say so only after a
+// body calibration.
+TEST(BodyStage, PublishedFramesAreCalibratedOnlyAfterABodyCalibration) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
+    for (const bool tpose : {false, true}) {
+        SimulatedClock clock(Timestamp{1s});
+        bs::ClipOptions o;
+        o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
+        o.profile = bs::ErrorProfile::Ideal;
+        auto clip = bs::clipSources(o, clock.now());
+        auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
+        ASSERT_TRUE(suit) << suit.error().message;
+        firmware::FusionStage fusion(b, nullptr);
+        firmware::BodyStage::Options bo;
+        if (tpose) {
+            bo.calibrate = body::ReferencePoseKind::T;
+        }
+        firmware::BodyStage bodyStage(b, fusion, nullptr, clock, bo);
+        firmware::PoseFeed poses;
+        bodyStage.publishTo(poses);
+        firmware::SteppedCapture capture(*suit, clock);
+        capture.runUntil(clock.now() + 5s, [&](const firmware::SensorSample& s) {
+            fusion.onSample(s);
+            bodyStage.onSample(s);
+        });
+        firmware::PoseFrame latest;
+        ASSERT_GT(poses.latest(latest), 0u) << "no pose published, T-pose " << tpose;
+        EXPECT_EQ(latest.bodyCalibrated, tpose);
+    }
+}
+
 TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
     const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
     SimulatedClock clock(Timestamp{1s});
