@@ -3,13 +3,16 @@ virtual suit: the armature's bones move, and each pose shown equals the recordin
 same serial within 1 deg (every bone's orientation in the armature, brought back to caphub's
 frame). Then the recording's glb export, imported with the add-on's one-click import, is bound
 by the name map of caphub's exports and posed by the stream's last frame, and rendered with
-Workbench into a PNG. Also checks that recording keyframes an action.
+Workbench into a PNG. Also checks that recording keyframes an action, and that malformed
+datagrams and a flood reach the add-on's timer without stopping it or posing anything bad.
 
 blender -b --factory-startup --python blender_live_check.py -- CAPHUB WORKDIR ADDON_PARENT PNG
 """
 import csv
 import math
 import os
+import shutil
+import socket
 import subprocess
 import sys
 import time
@@ -154,5 +157,94 @@ bpy.ops.render.render(write_still=True)
 check(os.path.exists(PNG), "no render")
 
 rx.close()
+
+# Hostile datagrams through the add-on's timer, called as Blender calls it (Blender drops a timer
+# that raises): each kind (stream_receive_check.py's) is refused and counted, the timer goes on
+# and the next good frame poses the armature; NaN is never posed nor keyframed; under a flood
+# each call returns soon, live (the newest frame) and recording.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import stream_receive_check as datagrams  # noqa: E402
+
+PYTHON = shutil.which("python3") or "/usr/bin/python3"  # Blender's sys.executable may be none
+
+hostile = Receiver(0, "127.0.0.1")
+caphub_live._state.update(receiver=hostile, rest_root=None, t0_ns=None, last=None)
+obj.animation_data_clear()
+settings.record = True
+tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+
+def tick_until(serial, limit_s=1.0):
+    """Calls the timer until the frame of that serial is posed: the timer's error, if any."""
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end:
+        try:
+            if caphub_live._timer() is None:
+                return "the timer stopped"
+        except Exception as e:  # noqa: BLE001 - Blender would drop the timer
+            return repr(e)
+        last = caphub_live._state["last"]
+        if last is not None and last.serial == serial:
+            return None
+        time.sleep(0.002)
+    return f"frame {serial} never posed"
+
+
+def pelvis_off_deg(serial):
+    bpy.context.view_layer.update()
+    pb = obj.pose.bones["pelvis"]
+    g = pb.matrix.to_quaternion() @ pb.bone.matrix_local.to_quaternion().inverted()
+    return angle_deg(C_inv @ g @ caphub_live.C_Q, Quaternion(datagrams.pelvis_rotation(serial)))
+
+
+tx.sendto(datagrams.native_skeleton(), ("127.0.0.1", hostile.port))
+tx.sendto(datagrams.native_frame(1), ("127.0.0.1", hostile.port))
+error = tick_until(1)
+check(error is None and pelvis_off_deg(1) < 0.05, f"hostile: the first good frame: {error}")
+serial = 1
+for what, data in datagrams.bad_datagrams():
+    serial += 1
+    bad = hostile.bad_packets
+    tx.sendto(data, ("127.0.0.1", hostile.port))
+    tx.sendto(datagrams.native_frame(serial), ("127.0.0.1", hostile.port))
+    error = tick_until(serial)
+    check(error is None and hostile.bad_packets == bad + 1 and pelvis_off_deg(serial) < 0.05,
+          f"hostile, {what}: {error}, bad datagrams {bad} -> {hostile.bad_packets}")
+values = [v for pb in obj.pose.bones for v in tuple(pb.rotation_quaternion) + tuple(pb.location)]
+keys = [kp.co[1] for fc in obj.animation_data.action.fcurves for kp in fc.keyframe_points] \
+    if obj.animation_data and obj.animation_data.action else []
+print(f"hostile: {serial - 1} kinds of bad datagram, {hostile.bad_packets} counted bad; "
+      f"{len(keys)} keys recorded")
+check(all(math.isfinite(v) for v in values + keys) and len(keys) > 0,
+      "hostile: a pose or keyframe value not finite (or none recorded)")
+check(caphub_live._state.get("errors", 0) == 0, "hostile: the timer caught an error")
+
+for record in (False, True):
+    settings.record = record
+    sender = datagrams.flood(hostile.port, datagrams.native_frame(7000), 1.5, PYTHON)
+    worst_s, calls, timer_error, received = 0.0, 0, None, hostile.frames_received
+    while sender.poll() is None and timer_error is None:
+        t = time.monotonic()
+        try:
+            caphub_live._timer()
+        except Exception as e:  # noqa: BLE001
+            timer_error = repr(e)
+        worst_s, calls = max(worst_s, time.monotonic() - t), calls + 1
+    sender.wait()
+    received = hostile.frames_received - received
+    while hostile.poll():
+        pass
+    print(f"flood, {'recording' if record else 'live'}: {calls} timer calls, the longest "
+          f"{worst_s * 1000:.1f} ms, {received} frames taken")
+    check(timer_error is None and calls >= 5 and worst_s < 0.5 and received > 1000,
+          f"flood ({'recording' if record else 'live'}): {calls} calls, the longest "
+          f"{worst_s:.2f} s, {timer_error}")
+    serial += 1
+    tx.sendto(datagrams.native_frame(serial), ("127.0.0.1", hostile.port))
+    error = tick_until(serial)
+    check(error is None and pelvis_off_deg(serial) < 0.05, f"after the flood: {error}")
+settings.record = False
+tx.close()
+hostile.close()
 print(f"{len(failures)} failures" if failures else "blender: the live stream drives the armature")
 sys.exit(1 if failures else 0)

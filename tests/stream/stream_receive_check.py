@@ -9,7 +9,11 @@ rows (every segment within 0.5 deg after undoing Unity's convention; the native 
 fail and are counted, while the capture drops nothing and records every sample it takes (as a
 capture without streams, run beside it for comparison).
 
-usage: stream_receive_check.py CAPHUB WORKDIR
+Before that, the Blender add-on's receiver (pure Python, loaded without Blender) is fed malformed
+datagrams of every kind and a flood: each is refused and counted, the next good frame is taken,
+and one poll() is bounded.
+
+usage: stream_receive_check.py CAPHUB WORKDIR [ADDON_PARENT]
 """
 import csv
 import math
@@ -394,8 +398,241 @@ def summary(caphub, text, cap):
             int(rec.group(1)))
 
 
+# ---------------------------------------------------------------------------------------------
+# The Blender add-on's receiver (firmware/stream/blender/caphub_live: osc.py and receiver.py are
+# plain Python, loaded here without Blender) on malformed and hostile datagrams and on a flood.
+# blender_live_check.py sends the same datagrams through the add-on's timer inside Blender.
+
+SEGMENTS = ["pelvis", "l5", "t12", "c7", "skull", "l_clavicle", "l_upperarm", "l_forearm",
+            "l_hand", "r_clavicle", "r_upperarm", "r_forearm", "r_hand", "l_thigh", "l_calf",
+            "l_hindfoot", "l_middistal", "r_thigh", "r_calf", "r_hindfoot", "r_middistal"]
+PARENTS = [-1, 0, 1, 2, 3, 3, 5, 6, 7, 3, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19]
+
+
+def osc_string(s):
+    b = s.encode() + b"\0"
+    return b + b"\0" * (-len(b) % 4)
+
+
+def osc_message(address, tags, payload=b""):
+    return osc_string(address) + osc_string(tags) + payload
+
+
+def osc_bundle(*elements):
+    return b"#bundle\0" + bytes(8) + b"".join(struct.pack(">i", len(e)) + e for e in elements)
+
+
+def floats(values):
+    return struct.pack(f">{len(values)}f", *values)
+
+
+def native_skeleton(parents=PARENTS, offset=(0.0, 0.1, 0.0)):
+    payload = struct.pack(">ii", 1, len(SEGMENTS))
+    for name, parent in zip(SEGMENTS, parents):
+        payload += osc_string(name) + struct.pack(">i", parent) + floats(offset)
+    return osc_bundle(osc_message("/caphub/skeleton", ",ii" + "sifff" * len(SEGMENTS), payload))
+
+
+def pelvis_rotation(serial):
+    """The good frames' pelvis: serial degrees about Y (the others: identity)."""
+    return axis_angle((0.0, 1.0, 0.0), serial)
+
+
+def native_frame(serial, local=None, root=(0.0, 0.9, 0.0), frame_msg=None, local_msg=None):
+    local = list(pelvis_rotation(serial)) + [1.0, 0.0, 0.0, 0.0] * 20 if local is None else local
+    return osc_bundle(
+        frame_msg or osc_message("/caphub/frame", ",hhhhii",
+                                 struct.pack(">qqqqii", serial, serial * 16_666_667, 0, 0, 0, 1)),
+        osc_message("/caphub/root", ",fff", floats(root)),
+        local_msg or osc_message("/caphub/local", "," + "f" * len(local), floats(local)))
+
+
+def bad_datagrams():
+    """(what, datagram): each must be refused whole and counted, the receiver going on."""
+    nan, inf = float("nan"), float("inf")
+    unit = [1.0, 0.0, 0.0, 0.0]
+    deep = native_frame(1)
+    for _ in range(1000):
+        deep = osc_bundle(deep)
+    nine = native_frame(1)
+    for _ in range(9):
+        nine = osc_bundle(nine)
+    count_payload = struct.pack(">i", 1)
+    return [
+        ("an argument cut short (83 of 84 floats)", native_frame(
+            2, local_msg=osc_message("/caphub/local", "," + "f" * 84, floats(unit * 21)[:-4]))),
+        ("a type tag longer than its data (h in 4 bytes)", native_frame(
+            2, frame_msg=osc_message("/caphub/frame", ",hhhhih",
+                                     struct.pack(">qqqqii", 2, 2, 0, 0, 0, 1)))),
+        ("a d argument with no data", osc_message("/caphub/root", ",d")),
+        ("a bundle element past the end", osc_bundle(native_frame(2))[:-8]),
+        ("1000 nested bundles", deep),
+        ("9 nested bundles (the limit is 8)", nine),
+        ("an empty datagram", b""),
+        ("not UTF-8", b"/caphub/\xff\0\0\0,\0\0\0"),
+        ("bytes after the arguments",
+         osc_message("/caphub/root", ",fff", floats([0, 1, 0]) + b"x")),
+        ("a skeleton count as a float",
+         osc_bundle(osc_message("/caphub/skeleton", ",if", count_payload + floats([21.0])))),
+        ("a skeleton count as a string",
+         osc_bundle(osc_message("/caphub/skeleton", ",is", count_payload + osc_string("21")))),
+        ("a skeleton parent out of range (99)", native_skeleton([-1] + [99] * 20)),
+        ("a skeleton parent after its child", native_skeleton([-1, 2] + PARENTS[2:])),
+        ("a skeleton offset NaN", native_skeleton(offset=(0.0, nan, 0.0))),
+        ("a frame of 20 quaternions", native_frame(2, unit * 20)),
+        ("a frame of 22 quaternions", native_frame(2, unit * 22)),
+        ("strings for the quaternions", native_frame(
+            2, local_msg=osc_message("/caphub/local", ",ssss", osc_string("a") * 4))),
+        ("a serial as a string", native_frame(
+            2, frame_msg=osc_message("/caphub/frame", ",shhhii", osc_string("2") +
+                                     struct.pack(">qqqii", 2, 0, 0, 0, 1)))),
+        ("a serial as a float", native_frame(
+            2, frame_msg=osc_message("/caphub/frame", ",fhhhii", struct.pack(
+                ">fqqqii", 2.0, 2, 0, 0, 0, 1)))),
+        ("a NaN quaternion", native_frame(2, [nan] * 4 + unit * 20)),
+        ("an infinite quaternion", native_frame(2, unit * 20 + [inf, 0.0, 0.0, 0.0])),
+        ("a zero quaternion", native_frame(2, unit * 20 + [0.0] * 4)),
+        ("a NaN root", native_frame(2, root=(0.0, nan, 0.0))),
+        ("an infinite root", native_frame(2, root=(inf, 0.9, 0.0))),
+        ("a frame without its rotations", osc_bundle(osc_message(
+            "/caphub/frame", ",hhhhii", struct.pack(">qqqqii", 2, 2, 0, 0, 0, 1)))),
+    ]
+
+
+def load_addon_receiver(addon_parent):
+    """caphub_live's receiver module without Blender (its package __init__ needs bpy)."""
+    import importlib.util
+    import types
+    folder = os.path.join(addon_parent, "caphub_live")
+    package = types.ModuleType("caphub_live")
+    package.__path__ = [folder]
+    sys.modules["caphub_live"] = package
+    for name in ("osc", "receiver"):
+        spec = importlib.util.spec_from_file_location(f"caphub_live.{name}",
+                                                      os.path.join(folder, name + ".py"))
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module
+        spec.loader.exec_module(module)
+    return sys.modules["caphub_live.receiver"]
+
+
+def poll_for(rx, serial, newest_only=False):
+    """Polls until the frame of that serial comes (1 s at most): (frames seen, the exception)."""
+    seen = []
+    end = time.monotonic() + 1.0
+    while time.monotonic() < end:
+        try:
+            seen += rx.poll(newest_only=True) if newest_only else rx.poll()
+        except Exception as e:  # noqa: BLE001 - what the add-on must never let out
+            return seen, e
+        if any(f.serial == serial for f in seen):
+            break
+        time.sleep(0.002)
+    return seen, None
+
+
+def flood(port, datagram, seconds, python=sys.executable):
+    """Another process sending the datagram to the port as fast as it can for that long."""
+    code = ("import socket, sys, time\n"
+            "tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)\n"
+            "data, end = bytes.fromhex(sys.argv[2]), time.monotonic() + float(sys.argv[3])\n"
+            "while time.monotonic() < end:\n"
+            "    for _ in range(50):\n"
+            "        tx.sendto(data, ('127.0.0.1', int(sys.argv[1])))\n")
+    return subprocess.Popen([python, "-c", code, str(port), datagram.hex(), str(seconds)])
+
+
+def check_addon_receiver(addon_parent):
+    receiver = load_addon_receiver(addon_parent)
+    rx = receiver.Receiver(0, "127.0.0.1")
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    tx.sendto(native_skeleton(), ("127.0.0.1", rx.port))
+    tx.sendto(native_frame(1), ("127.0.0.1", rx.port))
+    seen, error = poll_for(rx, 1)
+    check(error is None and [f.serial for f in seen] == [1] and rx.bad_packets == 0,
+          f"add-on receiver: the good skeleton and frame gave {len(seen)} frames ({error!r})")
+    serial = 1
+    for what, data in bad_datagrams():
+        serial += 1
+        bad = rx.bad_packets
+        tx.sendto(data, ("127.0.0.1", rx.port))
+        tx.sendto(native_frame(serial), ("127.0.0.1", rx.port))
+        seen, error = poll_for(rx, serial)
+        got = [f.serial for f in seen]
+        ok = (error is None and got == [serial] and rx.bad_packets == bad + 1 and
+              rx.skeleton is not None and rx.skeleton.parents == PARENTS and
+              angle_deg(seen[0].local[0], pelvis_rotation(serial)) < 0.01)
+        check(ok, f"add-on receiver, {what}: {error!r}, frames {got}, "
+                  f"bad datagrams {bad} -> {rx.bad_packets}")
+    print(f"add-on receiver: {serial - 1} kinds of bad datagram sent, each followed by a good "
+          f"frame; {rx.bad_packets} counted bad")
+
+    # A burst larger than one poll() may read: at most max_datagrams a call, the rest kept by the
+    # socket for the next; newest_only gives one frame, the newest read.
+    rx.max_datagrams, rx.budget_s = 64, 10.0  # the count bound alone (the time one: below)
+    for k in range(200):
+        tx.sendto(native_frame(1000 + k), ("127.0.0.1", rx.port))
+    time.sleep(0.1)
+    counts = []
+    try:
+        first = rx.poll()
+        counts.append(len(first))
+        newest = rx.poll(newest_only=True)
+        counts.append(len(newest))
+        while len(counts) < 10:
+            counts.append(len(rx.poll()))
+    except Exception as e:  # noqa: BLE001
+        check(False, f"add-on receiver, a burst: {e!r}")
+    else:
+        check(counts[0] == 64 and [f.serial for f in first] == list(range(1000, 1064)),
+              f"add-on receiver: a burst of 200 gave {counts[0]} frames to one poll(), not 64")
+        check(len(newest) == 1 and newest[0].serial == 1127,
+              f"add-on receiver: newest_only gave {[f.serial for f in newest]}, not [1127]")
+        check(sum(counts) == 200 - 63, f"add-on receiver: the burst's polls gave {counts}")
+    rx.close()
+
+    # A flood (a sender as fast as it can for 2 s): every poll() returns within a small time
+    # with at most 256 frames (MAX_DATAGRAMS; one with newest_only), and the receiver still works.
+    rx = receiver.Receiver(0, "127.0.0.1")
+    tx.sendto(native_skeleton(), ("127.0.0.1", rx.port))
+    sender = flood(rx.port, native_frame(5000), 2.0)
+    time.sleep(0.2)
+    worst_s, most, most_newest, polls = 0.0, 0, 0, 0
+    try:
+        while sender.poll() is None:  # every frame (recording), then the newest (live), in turn
+            newest_only = polls % 2 == 1
+            t = time.monotonic()
+            n = len(rx.poll(newest_only=True) if newest_only else rx.poll())
+            worst_s = max(worst_s, time.monotonic() - t)
+            if newest_only:
+                most_newest = max(most_newest, n)
+            else:
+                most = max(most, n)
+            polls += 1
+    except Exception as e:  # noqa: BLE001
+        check(False, f"add-on receiver, a flood: {e!r}")
+    sender.wait()
+    print(f"add-on receiver under a flood: {polls} polls, the longest {worst_s * 1000:.1f} ms, "
+          f"at most {most} frames from one ({most_newest} with newest_only)")
+    check(polls >= 10 and worst_s < 0.25, f"add-on receiver: a poll() under a flood took "
+          f"{worst_s:.2f} s ({polls} polls)")
+    check(0 < most <= 256 and most_newest == 1,
+          f"add-on receiver: {most} frames from one poll() under a flood")
+    while rx.poll():
+        pass
+    tx.sendto(native_frame(6000), ("127.0.0.1", rx.port))
+    seen, error = poll_for(rx, 6000)
+    check(error is None and [f.serial for f in seen] == [6000],
+          "add-on receiver: no good frame after the flood")
+    tx.close()
+    rx.close()
+
+
 def main():
     caphub, work = sys.argv[1], sys.argv[2]
+    addon_parent = sys.argv[3] if len(sys.argv) > 3 else os.path.join(
+        os.path.dirname(os.path.abspath(__file__)), "..", "..", "firmware", "stream", "blender")
+    check_addon_receiver(addon_parent)
     os.makedirs(work, exist_ok=True)
     for f in os.listdir(work):
         os.remove(os.path.join(work, f))

@@ -12,6 +12,8 @@ bl_info = {
     "category": "Animation",
 }
 
+import traceback
+
 import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from mathutils import Matrix, Quaternion, Vector
@@ -35,7 +37,7 @@ HANIM_JOINTS = {
     "r_calf": "r_knee", "r_hindfoot": "r_talocrural", "r_middistal": "r_metatarsophalangeal",
 }
 
-_state = {"receiver": None, "rest_root": None, "t0_ns": None, "last": None}
+_state = {"receiver": None, "rest_root": None, "t0_ns": None, "last": None, "errors": 0}
 
 
 def to_blender(v):
@@ -145,7 +147,9 @@ def step(context):
     rx = _state["receiver"]
     if rx is None:
         return None
-    frames = rx.poll()
+    # Recording keyframes every frame (at most the receiver's datagrams per call); live posing
+    # needs only the newest.
+    frames = rx.poll(newest_only=not settings.record)
     skeleton = rx.skeleton
     if not frames or skeleton is None:
         return None
@@ -170,7 +174,14 @@ def step(context):
 def _timer():
     if _state["receiver"] is None:
         return None
-    step(bpy.context)
+    try:
+        step(bpy.context)
+    except Exception:
+        # The receiver refuses malformed datagrams itself; this is for anything else (an odd
+        # target armature, say): printed, and the timer goes on (Blender drops one that raises).
+        _state["errors"] += 1
+        if _state["errors"] <= 10:
+            traceback.print_exc()
     return 1.0 / 120.0
 
 
@@ -203,7 +214,7 @@ class CAPHUB_OT_connect(bpy.types.Operator):
         except OSError as e:
             self.report({"ERROR"}, f"port {context.scene.caphub_live.port}: {e}")
             return {"CANCELLED"}
-        _state["rest_root"], _state["t0_ns"] = None, None
+        _state["rest_root"], _state["t0_ns"], _state["errors"] = None, None, 0
         bpy.app.timers.register(_timer)
         return {"FINISHED"}
 
@@ -288,6 +299,8 @@ class CAPHUB_PT_live(bpy.types.Panel):
             last = _state["last"]
             col.label(text=f"{rx.frames_received} frames" +
                       (f", pose {last.serial}" if last else ", waiting"))
+            if rx.bad_packets:
+                col.label(text=f"{rx.bad_packets} bad datagrams skipped")
         col.separator()
         col.operator("caphub.import_bvh")
         col.operator("caphub.import_glb")
