@@ -243,8 +243,11 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
         }
         if (!decodePose(v, rootM, joints, &notMeasured) || joints.size() != body::kSegmentCount ||
             !finite(rootM) ||
-            !std::all_of(joints.begin(), joints.end(),
-                         [](const Eigen::Quaternionf& q) { return q.coeffs().allFinite(); })) {
+            !std::all_of(joints.begin(), joints.end(), [](const Eigen::Quaternionf& q) {
+                // A rotation: a zero quaternion (a crafted or damaged record whose
+                // checksum holds) was exported as the identity.
+                return q.coeffs().allFinite() && std::abs(q.norm() - 1.0f) < 0.1f;
+            })) {
             ++track.malformedPoses;
             continue;
         }
@@ -271,8 +274,8 @@ Result<PoseTrack> readPoseTrack(RecordingReader& reader, const TrackOptions& opt
     if (raw.empty()) {
         return Error{ENODATA,
                      track.malformedPoses > 0
-                         ? fmt::format("no usable pose records ({} malformed: not {} joints or "
-                                       "not finite)",
+                         ? fmt::format("no usable pose records ({} malformed: not {} joints, "
+                                       "not finite or not rotations)",
                                        track.malformedPoses, body::kSegmentCount)
                          : std::string("no pose records: was the body stage on?")};
     }

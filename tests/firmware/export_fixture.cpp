@@ -115,7 +115,13 @@ std::vector<RecordedPose> writeWalkRecording(const std::string& path,
         const RecordedPose& last = poses.back();
         const std::int64_t tNs =
             options.startNs + static_cast<std::int64_t>(std::llround(*options.extraPoseAtS * 1e9));
-        if ((*writer)->writePose(timestampFromNs(tNs), last.rootM, last.qLocal, 0) != 0) {
+        auto joints = last.qLocal;
+        if (options.extraPoseZero) {
+            for (auto& q : joints) {
+                q.coeffs().setZero();
+            }
+        }
+        if ((*writer)->writePose(timestampFromNs(tNs), last.rootM, joints, 0) != 0) {
             throw std::runtime_error("writePose failed");
         }
     }

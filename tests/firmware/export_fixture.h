@@ -40,6 +40,8 @@ struct WalkRecordingOptions {
     // One more pose (a copy of the last) this long after the first: a record whose time is far
     // off the others, as a damaged file can hold; none when not set.
     std::optional<double> extraPoseAtS;
+    // That pose's joint rotations all zero quaternions (no rotation at all), its checksum intact.
+    bool extraPoseZero = false;
 };
 
 // Writes the recording (replacing any file at path) and returns the poses it holds.

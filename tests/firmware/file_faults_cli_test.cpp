@@ -381,6 +381,20 @@ TEST(ExportOutput, APoseFarAfterTheOthersIsRefusedAndTheOldFileKept) {
     EXPECT_EQ(part.exitCode, 0) << part.output;
 }
 
+// A pose record whose joint rotations are all zero (its checksum intact) was exported as the
+// identity and not counted; a NaN one was. Both are malformed, skipped and said.
+TEST(ExportInputs, APoseOfZeroQuaternionsIsMalformed) {
+    caphub::firmware::testing::WalkRecordingOptions o;
+    o.seconds = 0.5;
+    o.extraPoseAtS = 0.6;
+    o.extraPoseZero = true;
+    const std::string rec = path("zero-pose.cap");
+    caphub::firmware::testing::writeWalkRecording(rec, o);
+    const CliRun r = caphub("export " + rec + " --format csv -o " + path("zero-pose.csv"));
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("1 malformed and 0 out-of-order pose record(s)"));
+}
+
 // A FIFO that nobody writes to, given as a recording or a stream: it used to hang every command
 // in its open; it now reads as empty.
 TEST(FileInputs, AFifoWithoutAWriterIsNotWaitedOn) {
