@@ -75,6 +75,9 @@ Result<RecordingSummary> summarizeRecording(const std::string& path) {
     std::vector<Eigen::Quaternionf> joints;
     Timestamp first = Timestamp::max();
     Timestamp last = Timestamp::min();
+    std::uint64_t samplesBack = 0;
+    std::uint64_t posesBack = 0;
+    Timestamp lastPoseT = Timestamp::min();
     RecordView v;
     int rc = 0;
     while ((rc = r.next(v)) == 1) {
@@ -87,11 +90,16 @@ Result<RecordingSummary> summarizeRecording(const std::string& path) {
             ++perSensor[sensor];
             auto [it, fresh] = sensorSpan.emplace(sensor, std::pair{v.t, v.t});
             if (!fresh) {
-                it->second.second = v.t;
+                // A sample not after the sensor's one before: a range of records written twice
+                // or out of order (export and reprocess skip them).
+                samplesBack += v.t <= it->second.second ? 1 : 0;
+                it->second.second = std::max(it->second.second, v.t);
             }
         }
         std::uint32_t notMeasured = 0;
         if (decodePose(v, rootM, joints, &notMeasured)) {
+            posesBack += v.t <= lastPoseT ? 1 : 0;
+            lastPoseT = std::max(lastPoseT, v.t);
             for (int j = 0; j < 32; ++j) {
                 if ((notMeasured >> j & 1u) == 0) {
                     continue;
@@ -177,10 +185,17 @@ Result<RecordingSummary> summarizeRecording(const std::string& path) {
                            name, toSeconds(g.from - first), toSeconds(g.to - first), g.poses);
         }
     }
-    fmt::format_to(std::back_inserter(out), "\ndamage: {}", r.damage().empty() ? "none" : "");
+    const bool none = r.damage().empty() && samplesBack == 0 && posesBack == 0;
+    fmt::format_to(std::back_inserter(out), "\ndamage: {}", none ? "none" : "");
     for (const auto& d : r.damage()) {
         fmt::format_to(std::back_inserter(out), "\n  {} bytes at offset {}: {}", d.bytes, d.offset,
                        d.what);
+    }
+    if (samplesBack > 0 || posesBack > 0) {
+        fmt::format_to(std::back_inserter(out),
+                       "\n  {} raw sample(s) and {} pose(s) not after the one before them (records "
+                       "written twice or out of order: skipped by export and reprocess)",
+                       samplesBack, posesBack);
     }
     fmt::format_to(std::back_inserter(out), "\ntorn tail: {} bytes\n", r.tornTailBytes());
     summary.durationS = span;

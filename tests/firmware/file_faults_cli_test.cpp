@@ -395,6 +395,23 @@ TEST(ExportInputs, APoseOfZeroQuaternionsIsMalformed) {
     EXPECT_THAT(r.output, HasSubstr("1 malformed and 0 out-of-order pose record(s)"));
 }
 
+// Records written twice or out of order (their checksums intact): export and reprocess skip and
+// count them, and info said "damage: none".
+TEST(InfoInputs, RecordsOutOfTimeOrderAreDamage) {
+    caphub::firmware::testing::WalkRecordingOptions o;
+    o.seconds = 0.5;
+    const std::string good = path("in-order.cap");
+    caphub::firmware::testing::writeWalkRecording(good, o);
+    EXPECT_THAT(caphub("info " + good).output, HasSubstr("damage: none"));
+    o.extraPoseAtS = 0.1;  // after the last pose in the file, dated before it
+    const std::string rec = path("out-of-order.cap");
+    caphub::firmware::testing::writeWalkRecording(rec, o);
+    const CliRun r = caphub("info " + rec);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_THAT(r.output, Not(HasSubstr("damage: none")));
+    EXPECT_THAT(r.output, HasSubstr("0 raw sample(s) and 1 pose(s) not after the one before them"));
+}
+
 // A FIFO that nobody writes to, given as a recording or a stream: it used to hang every command
 // in its open; it now reads as empty.
 TEST(FileInputs, AFifoWithoutAWriterIsNotWaitedOn) {
