@@ -14,6 +14,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// A take's description for the page: its file name where the text names the hub's own path
+// (the export's errors hide the hub's folders too).
+std::string withoutHubPath(std::string text, const fs::path& takePath) {
+    const std::string full = takePath.string();
+    const std::string name = takePath.filename().string();
+    for (std::size_t at = text.find(full); !full.empty() && at != std::string::npos;
+         at = text.find(full, at + name.size())) {
+        text.replace(at, full.size(), name);
+    }
+    return text;
+}
+
 const char* mimeOf(exporter::Format f) {
     switch (f) {
         case exporter::Format::Glb:
@@ -76,9 +88,11 @@ void WebServer::State::takeRoutes() {
                                j["poses"] = summary->poses;
                                j["markers"] = summary->markers;
                                j["damaged_ranges"] = summary->damagedRanges;
-                               j["info"] = summary->text;
+                               j["info"] =
+                                   withoutHubPath(summary->text, s->options.recordings / t.name);
                            } else {
-                               j["summary_error"] = summary.error().message;
+                               j["summary_error"] = withoutHubPath(summary.error().message,
+                                                                   s->options.recordings / t.name);
                            }
                        }
                        list.push_back(std::move(j));
@@ -192,7 +206,7 @@ void WebServer::State::takeRoutes() {
                                      const std::string&, const fs::path& path) {
                    auto summary = summarizeRecording(path.string());
                    if (!summary) {
-                       fail(res, 422, summary.error().message);
+                       fail(res, 422, withoutHubPath(summary.error().message, path));
                        return;
                    }
                    reply(res, 200,
@@ -201,7 +215,7 @@ void WebServer::State::takeRoutes() {
                               {"records", summary->records},
                               {"poses", summary->poses},
                               {"markers", summary->markers},
-                              {"info", summary->text}});
+                              {"info", withoutHubPath(summary->text, path)}});
                }));
     server.Post(
         R"(/api/takes/([^/]+)/delete)",

@@ -512,6 +512,8 @@ TEST(Serve, BytesThatAreNotUtf8AreAnsweredNotFatal) {
     ASSERT_TRUE(list) << "no answer";
     EXPECT_EQ(list->status, 200) << list->body;
     EXPECT_NE(list->body.find("\xEF\xBF\xBDt\xEF\xBF\xBD.cap"), std::string::npos) << list->body;
+    // Nor does a take's description name the hub's folders (the export's errors do not).
+    EXPECT_EQ(list->body.find(rig.recordings.string()), std::string::npos) << list->body;
 }
 
 // A login is JSON only: a page on another site can POST text/plain here without asking, and
