@@ -531,6 +531,14 @@ TEST(BodyStage, SolvesEachPoseForItsGridTimeBetweenTheSensorsSamples) {
     EXPECT_LT(meanAbsDeviation, 0.1);
 }
 
+// The walk on ideal chips from `clock`'s now: what a board's sensors read of it.
+auto idealWalkSources(SimulatedClock& clock) {
+    bs::ClipOptions o;
+    o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
+    o.profile = bs::ErrorProfile::Ideal;
+    return bs::clipSources(o, clock.now());
+}
+
 // The streams' "calibrated" flags (VMC's calibration state, caphub's frame) said calibrated on
 // the nominal mountings (`run --calibrate none`): the published frames say so only after a
 // body calibration.
@@ -538,10 +546,7 @@ TEST(BodyStage, PublishedFramesAreCalibratedOnlyAfterABodyCalibration) {
     const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
     for (const bool tpose : {false, true}) {
         SimulatedClock clock(Timestamp{1s});
-        bs::ClipOptions o;
-        o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
-        o.profile = bs::ErrorProfile::Ideal;
-        auto clip = bs::clipSources(o, clock.now());
+        auto clip = idealWalkSources(clock);
         auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
         ASSERT_TRUE(suit) << suit.error().message;
         firmware::FusionStage fusion(b, nullptr);
@@ -566,10 +571,7 @@ TEST(BodyStage, PublishedFramesAreCalibratedOnlyAfterABodyCalibration) {
 TEST(PreviewStage, RendersTheBodysPosesIntoTheSinksWithoutHoldingThePipeline) {
     const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-upper10.toml").board;
     SimulatedClock clock(Timestamp{1s});
-    bs::ClipOptions o;
-    o.bvh = kSource / "tests" / "data" / "bvh" / "cmu_12_01_walk.bvh";
-    o.profile = bs::ErrorProfile::Ideal;
-    auto clip = bs::clipSources(o, clock.now());
+    auto clip = idealWalkSources(clock);
     auto suit = bs::buildVirtualSuit(b, clock, clip->sources);
     ASSERT_TRUE(suit) << suit.error().message;
 
