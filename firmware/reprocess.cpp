@@ -540,6 +540,15 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
     };
 
     SmoothedOrientations smoothed;
+    // A pass that takes the smoothed orientations in place of its filters', from the start of
+    // the recording (the lookup walks each sensor's list forward).
+    const auto useSmoothed = [&smoothed](Pass& p) {
+        smoothed.rewind();
+        p.fusion.overrideOrientations(
+            [&smoothed](const SensorSample& s, const Eigen::Quaternionf& q) {
+                return smoothed.lookup(s, q);
+            });
+    };
     if (o.smooth) {
         // The causal pass first, for what the body told the filters (the body's acceleration at
         // each sample): the smoother's runs are told the same.
@@ -566,12 +575,8 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
         BodyStage::Options feetOptions = bodyOptions;
         feetOptions.footStretches = logs;
         Pass feet(board, nullptr, calibrations, t0, feetOptions);
-        feet.fusion.overrideOrientations(
-            [&smoothed](const SensorSample& s, const Eigen::Quaternionf& q) {
-                return smoothed.lookup(s, q);
-            });
+        useSmoothed(feet);
         run(feet, nullptr, "feet", {});
-        smoothed.rewind();
         logs->use = body::FootStretchUse::Correct;
         bodyOptions.footStretches = logs;
     }
@@ -584,10 +589,7 @@ Result<ReprocessSummary> reprocess(const board::Board& board, const SourceRecord
         pass.pipeline.add(*st);
     }
     if (o.smooth) {
-        pass.fusion.overrideOrientations(
-            [&smoothed](const SensorSample& s, const Eigen::Quaternionf& q) {
-                return smoothed.lookup(s, q);
-            });
+        useSmoothed(pass);
     }
     ReprocessSummary summary;
     summary.durationS = durationS;

@@ -87,9 +87,10 @@ public:
         double hz = 0;
         const auto [ptr, ec] = std::from_chars(rest.data() + b, rest.data() + rest.size(), hz);
         std::string_view unit(ptr, static_cast<std::size_t>(rest.data() + rest.size() - ptr));
-        while (!unit.empty() && (unit.front() == ' ' || unit.back() == ' ')) {
-            unit = unit.front() == ' ' ? unit.substr(1) : unit.substr(0, unit.size() - 1);
-        }
+        const std::size_t from = unit.find_first_not_of(' ');
+        unit = from == std::string_view::npos
+                   ? std::string_view()
+                   : unit.substr(from, unit.find_last_not_of(' ') - from + 1);
         if (ec != std::errc() || (unit != "Hz" && unit != "hz") || !(hz >= 1 && hz <= 10000)) {
             return error(line, static_cast<int>(at + 13 + b),
                          "Update Rate: expected a rate of 1 to 10000 Hz such as 100.0Hz");

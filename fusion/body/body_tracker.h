@@ -223,10 +223,6 @@ public:
     // to add), from the samples since it; none before they have turned enough, or for a
     // calibration it does not apply to (KneeHeadingMode).
     std::optional<double> kneeHeadingError() const;
-    // Offline: whether both feet's stretches matched their logs (FootStretchUse::Correct).
-    bool footStretchesMatched() const {
-        return footInertial_[0].stretchLogMatched() && footInertial_[1].stretchLogMatched();
-    }
     // Body calibrations completed so far.
     int calibrations() const { return calibrations_; }
     Duration period() const { return period_; }
