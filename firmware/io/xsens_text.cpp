@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "board/loader.h"
+#include "hal/core/angles.h"
 #include "hal/core/input_file.h"
 
 namespace caphub::firmware {
@@ -17,6 +18,9 @@ namespace {
 
 // The largest reading accepted: no sensor measures beyond it (m/s^2, rad/s, field units).
 constexpr double kMaxXsensValue = 1e6;
+// How far a row's Quat_q0..q3 and Mat[r][c] may lie apart when a file has both (deg): the
+// files' 6 decimals round an orientation by about 1e-4 deg.
+constexpr double kMaxQuatMatrixDisagreementDeg = 0.1;
 
 struct Cell {
     std::string_view text;
@@ -160,8 +164,11 @@ public:
                     }
                 }
                 f.hasMag = col.count("Mag_X") && col.count("Mag_Y") && col.count("Mag_Z");
-                if (col.count("Quat_q0") && col.count("Quat_q1") && col.count("Quat_q2") &&
-                    col.count("Quat_q3")) {
+                const bool quat = col.count("Quat_q0") && col.count("Quat_q1") &&
+                                  col.count("Quat_q2") && col.count("Quat_q3");
+                if (quat && hasMatrix(col)) {
+                    f.orientationColumns = "quaternion and matrix";
+                } else if (quat) {
                     f.orientationColumns = "quaternion";
                 } else if (hasMatrix(col)) {
                     f.orientationColumns = "matrix";
@@ -245,7 +252,8 @@ public:
                 }
                 s.mag = m;
             }
-            if (f.orientationColumns == "quaternion") {
+            std::optional<Eigen::Quaterniond> fromQuat;
+            if (f.orientationColumns.starts_with("quaternion")) {
                 std::array<double, 4> q{};
                 const std::array<const char*, 4> qn = {"Quat_q0", "Quat_q1", "Quat_q2", "Quat_q3"};
                 for (std::size_t i = 0; i < 4; ++i) {
@@ -261,8 +269,10 @@ public:
                                  fmt::format("Quat_q0..q3: expected a unit quaternion, norm {:.4f}",
                                              quat.norm()));
                 }
-                s.qEarthSensor = quat.normalized();
-            } else if (f.orientationColumns == "matrix") {
+                fromQuat = quat.normalized();
+                s.qEarthSensor = fromQuat;
+            }
+            if (f.orientationColumns.ends_with("matrix")) {
                 Eigen::Matrix3d r;
                 for (int i = 0; i < 3; ++i) {
                     for (int j = 0; j < 3; ++j) {
@@ -274,12 +284,26 @@ public:
                         r(i, j) = *v;
                     }
                 }
+                const Cell& m11 = cells[static_cast<std::size_t>(col.at("Mat[1][1]"))];
                 if ((r.transpose() * r - Eigen::Matrix3d::Identity()).norm() > 0.01 ||
                     r.determinant() < 0) {
-                    return error(line, cells[static_cast<std::size_t>(col.at("Mat[1][1]"))].column,
-                                 "Mat[r][c]: expected a rotation matrix");
+                    return error(line, m11.column, "Mat[r][c]: expected a rotation matrix");
                 }
-                s.qEarthSensor = Eigen::Quaterniond(r).normalized();
+                const Eigen::Quaterniond fromMatrix = Eigen::Quaterniond(r).normalized();
+                if (fromQuat) {
+                    // Both written: one orientation in two forms, equal to the file's 4-6
+                    // decimals. Apart, the file says two things and neither is taken.
+                    const double deg = fromQuat->angularDistance(fromMatrix) * hal::kRadToDeg;
+                    if (deg > kMaxQuatMatrixDisagreementDeg) {
+                        return error(line, m11.column,
+                                     fmt::format("Mat[r][c] is {:.2f} deg from Quat_q0..q3 on the "
+                                                 "same row (at most {:g}): which one is the "
+                                                 "vendor's orientation?",
+                                                 deg, kMaxQuatMatrixDisagreementDeg));
+                    }
+                } else {
+                    s.qEarthSensor = fromMatrix;
+                }
             }
             f.samples.push_back(s);
         }

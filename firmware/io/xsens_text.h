@@ -22,7 +22,8 @@ struct XsensSample {
     Eigen::Vector3d gyrRadps = Eigen::Vector3d::Zero();
     std::optional<Eigen::Vector3d> mag;  // as written: units normalised to the local field
     // The vendor filter's orientation, sensor -> its earth frame (z up), from Quat_q0..q3 or
-    // the rotation matrix Mat[r][c].
+    // the rotation matrix Mat[r][c] (a file with both: the quaternion, the matrix checked
+    // against it).
     std::optional<Eigen::Quaterniond> qEarthSensor;
 };
 
@@ -43,7 +44,8 @@ struct XsensFile {
     std::vector<XsensGap> gaps;
     std::int64_t lostPackets = 0;
     bool hasMag = false;
-    std::string orientationColumns;  // "quaternion", "matrix" or "" (none)
+    // "quaternion", "matrix", "quaternion and matrix" or "" (none)
+    std::string orientationColumns;
 };
 
 // The device id an MT Manager file name carries: "MT_012005D6_031-000_00B421AF.txt" ->
@@ -52,7 +54,8 @@ std::string xsensDeviceId(const std::filesystem::path& path);
 
 // Errors name the file, line and column: a missing required column (PacketCounter, Acc_X..Z,
 // Gyr_X..Z), a row with another number of cells than the header, a cell that is not a number,
-// a packet counter that repeats or goes backwards, no update rate, no data row.
+// a packet counter that repeats or goes backwards, no update rate, no data row, a row whose
+// quaternion and matrix are two different orientations.
 Result<XsensFile> readXsensText(const std::filesystem::path& path);
 
 }  // namespace caphub::firmware

@@ -121,6 +121,34 @@ TEST(XsensText, CommasAndQuaternionColumnsAreReadToo) {
     EXPECT_EQ(f->gaps[0].line, 5);
 }
 
+// A file with both forms of the vendor's orientation: they are one orientation, or the file is
+// refused at the row where they part (an attacker's file took the quaternion silently).
+TEST(XsensText, AQuaternionAndAMatrixOnOneRowMustAgree) {
+    const std::string header =
+        "PacketCounter,Acc_X,Acc_Y,Acc_Z,Gyr_X,Gyr_Y,Gyr_Z,Quat_q0,Quat_q1,Quat_q2,Quat_q3,"
+        "Mat[1][1],Mat[2][1],Mat[3][1],Mat[1][2],Mat[2][2],Mat[3][2],Mat[1][3],Mat[2][3],"
+        "Mat[3][3]";
+    // 90 deg about z: q = (0.7071068, 0, 0, 0.7071068), R columns (0 1 0) (-1 0 0) (0 0 1).
+    const std::string turned = "0,0,9.81,0,0,0,0.7071068,0,0,0.7071068,0,1,0,-1,0,0,0,0,1";
+    auto both = caphub::firmware::readXsensText(writeLines(
+        "MT_Both_00000002.txt", {"// Update Rate: 60.0Hz", header,
+                                 "1,0,0,9.81,0,0,0,1,0,0,0,1,0,0,0,1,0,0,0,1", "2," + turned}));
+    ASSERT_TRUE(both.ok()) << both.error().message;
+    EXPECT_EQ(both->orientationColumns, "quaternion and matrix");
+    ASSERT_EQ(both->samples.size(), 2u);
+    EXPECT_NEAR(both->samples[1].qEarthSensor->z(), 0.7071068, 1e-6);
+
+    // The matrix of the identity beside the quaternion of the turn: 90 deg apart.
+    const std::string apart = "3,0,0,9.81,0,0,0,0.7071068,0,0,0.7071068,1,0,0,0,1,0,0,0,1";
+    const std::string p = writeLines("MT_Apart_00000002.txt",
+                                     {"// Update Rate: 60.0Hz", header, "2," + turned, apart});
+    auto refused = caphub::firmware::readXsensText(p);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_THAT(refused.error().message,
+                HasSubstr(p + ":4:" + std::to_string(apart.find(",1,0,0,0,1") + 2) +
+                          ": Mat[r][c] is 90.00 deg from Quat_q0..q3 on the same row"));
+}
+
 TEST(XsensText, MalformedInputNamesFileLineAndColumn) {
     auto rows = lines(readAll(kShank));
     rows.resize(12);
