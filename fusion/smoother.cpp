@@ -207,13 +207,162 @@ double share(double d, double mine, double theirs) {
     return both > 1e-30 ? d * mine / both : 0.0;
 }
 
+// A stretch of consecutive samples the causal run called at rest: [first, last].
+struct RestStretch {
+    std::size_t first = 0;
+    std::size_t last = 0;
+    Vec3d meanRate = Vec3d::Zero();  // the gyroscope's mean reading there: its bias
+};
+
+std::vector<RestStretch> restStretches(const std::vector<SmootherSample>& samples,
+                                       const std::vector<char>& atRest, std::size_t minSamples) {
+    std::vector<RestStretch> out;
+    std::size_t k = 0;
+    while (k < samples.size()) {
+        if (atRest[k] == 0) {
+            ++k;
+            continue;
+        }
+        RestStretch r;
+        r.first = k;
+        Vec3d sum = Vec3d::Zero();
+        while (k < samples.size() && atRest[k] != 0) {
+            sum += samples[k].gyrRadS;
+            ++k;
+        }
+        r.last = k - 1;
+        const std::size_t count = r.last - r.first + 1;
+        if (count >= minSamples) {
+            r.meanRate = sum / static_cast<double>(count);
+            out.push_back(r);
+        }
+    }
+    return out;
+}
+
+// The turn about up that brings the mean horizontal field over a rest, in the frame of the
+// estimate, to north (as the filter's heading correction does), from the samples whose field
+// the causal run trusted; none without them.
+std::optional<double> restFieldTurn(const std::vector<SmootherSample>& samples,
+                                    const std::vector<char>& magUsed, const std::vector<Quatd>& q,
+                                    const RestStretch& r) {
+    Vec3d sum = Vec3d::Zero();
+    int used = 0;
+    for (std::size_t k = r.first; k <= r.last; ++k) {
+        if (samples[k].magFresh && magUsed[k] != 0) {
+            sum += (q[k] * samples[k].magUt).normalized();
+            ++used;
+        }
+    }
+    if (used == 0 || std::hypot(sum.x(), sum.y()) < 1e-9) {
+        return std::nullopt;
+    }
+    return std::atan2(sum.x(), sum.y());
+}
+
+// The rotation a rate `w` (rad/s) makes over `dt`, in the sensor frame.
+Quatd rotationOver(const Vec3d& w, double dt) {
+    const double angle = w.norm() * dt;
+    if (angle < 1e-12) {
+        return Quatd::Identity();
+    }
+    return Quatd(Eigen::AngleAxisd(angle, w / w.norm()));
+}
+
+// restAnchoredHeading (SmootherOptions): the heading of `out` between consecutive rests from
+// the gyroscope, anchored at each rest on the mean field there.
+void bridgeHeadingsBetweenRests(const std::vector<SmootherSample>& samples,
+                                const std::vector<char>& atRest, const std::vector<char>& magUsed,
+                                const FilterParams& params, const SmootherOptions& options,
+                                std::vector<Quatd>& out) {
+    const double dt = 1.0 / params.gyrRateHz;
+    const auto minSamples =
+        static_cast<std::size_t>(std::max(1.0, std::ceil(options.minAnchorRestS / dt)));
+    const std::vector<RestStretch> rests = restStretches(samples, atRest, minSamples);
+    // The bridges: consecutive rests close enough in time, with every rate between them one
+    // the gyroscope measured (not clipped, within the filter's input limit: a glitch the
+    // filter rejects would turn the integration by whatever it holds).
+    const double limitRadS = params.gyrLimitDps * hal::kDegToRad;
+    const auto measured = [&](std::size_t from, std::size_t to) {
+        for (std::size_t k = from; k <= to; ++k) {
+            const SmootherSample& s = samples[k];
+            if (s.gyrClipped || !s.gyrRadS.allFinite() ||
+                s.gyrRadS.cwiseAbs().maxCoeff() > limitRadS) {
+                return false;
+            }
+        }
+        return true;
+    };
+    std::vector<char> bridged(rests.size() + 1, 0);  // bridged[i]: rests i and i+1
+    std::vector<char> anchors(rests.size(), 0);
+    for (std::size_t i = 0; i + 1 < rests.size(); ++i) {
+        if (static_cast<double>(rests[i + 1].first - rests[i].last) * dt <= options.maxBridgeS &&
+            measured(rests[i].first, rests[i + 1].last)) {
+            bridged[i] = 1;
+            anchors[i] = anchors[i + 1] = 1;
+        }
+    }
+    // Each anchor's heading: the field's there.
+    std::vector<Quatd> anchored = out;
+    for (std::size_t i = 0; i < rests.size(); ++i) {
+        const RestStretch& r = rests[i];
+        if (anchors[i] == 0) {
+            continue;
+        }
+        if (const std::optional<double> turn = restFieldTurn(samples, magUsed, out, r)) {
+            for (std::size_t k = r.first; k <= r.last; ++k) {
+                anchored[k] = (aboutUp(*turn) * out[k]).normalized();
+            }
+        }
+    }
+    for (std::size_t i = 0; i + 1 < rests.size(); ++i) {
+        if (bridged[i] == 0) {
+            continue;
+        }
+        const RestStretch& a = rests[i];
+        const RestStretch& b = rests[i + 1];
+        const std::size_t span = b.first - a.last;  // samples from one anchor to the other
+        // Forward: the attitude at sample k from the anchor at a.last and the rates of samples
+        // a.last+1 .. k (each rate the turn over the period that ends at its sample).
+        std::vector<Quatd> forward(span + 1);
+        forward[0] = anchored[a.last];
+        for (std::size_t j = 1; j <= span; ++j) {
+            const double frac = static_cast<double>(j) / static_cast<double>(span);
+            const Vec3d bias = (1.0 - frac) * a.meanRate + frac * b.meanRate;
+            const Vec3d w = samples[a.last + j].gyrRadS - bias;
+            forward[j] = (forward[j - 1] * rotationOver(w, dt)).normalized();
+        }
+        // Backward from the anchor at b.first, undoing the same rates.
+        Quatd backward = anchored[b.first];
+        for (std::size_t j = span; j-- > 1;) {
+            const double fracNext = static_cast<double>(j + 1) / static_cast<double>(span);
+            const Vec3d bias = (1.0 - fracNext) * a.meanRate + fracNext * b.meanRate;
+            const Vec3d w = samples[a.last + j + 1].gyrRadS - bias;
+            backward = (backward * rotationOver(w, dt).conjugate()).normalized();
+            const std::size_t k = a.last + j;
+            const double frac = static_cast<double>(j) / static_cast<double>(span);
+            const double turnF = headingTurn(forward[j], out[k]);
+            const double turnB = wrapPi(headingTurn(backward, out[k]) - turnF);
+            out[k] = (aboutUp(turnF + frac * turnB) * out[k]).normalized();
+        }
+    }
+    for (std::size_t i = 0; i < rests.size(); ++i) {
+        if (anchors[i] != 0) {
+            for (std::size_t k = rests[i].first; k <= rests[i].last; ++k) {
+                out[k] = anchored[k];
+            }
+        }
+    }
+}
+
 }  // namespace
 
 bool setSmoothHeading(SmootherOptions& o, std::string_view name) {
-    if (name != "causal" && name != "both") {
+    if (name != "causal" && name != "both" && name != "rest") {
         return false;
     }
-    o.forwardHeading = name == "causal";
+    o.forwardHeading = name != "both";
+    o.restAnchoredHeading = name == "rest";
     return true;
 }
 
@@ -231,6 +380,7 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
     const ExcessDecay decay(f);
     std::vector<Quatd> causal(n);
     std::vector<char> causalMag(n);
+    std::vector<char> causalRest(n);
     // The bias before the first clip: what follows a clip can teach the bias the lost rotation.
     std::optional<Vec3<float>> preClipBias;
     for (std::size_t k = 0; k < n; ++k) {
@@ -240,6 +390,7 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
         feed(f, samples[k], false);
         causal[k] = quatOf(f);
         causalMag[k] = f.state().magUsed ? 1 : 0;
+        causalRest[k] = f.atRest() ? 1 : 0;
     }
     const std::vector<Excess> loss = episodeLosses(samples, causal, f.state(), params);
     // 2. Backward from there. Before sample i is fed (reversed), the filter has integrated the
@@ -332,6 +483,9 @@ std::vector<Quatd> smoothOrientations(const std::vector<SmootherSample>& samples
         const double deg = fwRun.angularDistance(backward[k]) * 180.0 / std::numbers::pi;
         sumDeg += deg;
         maxDeg = std::max(maxDeg, deg);
+    }
+    if (options.restAnchoredHeading) {
+        bridgeHeadingsBetweenRests(samples, causalRest, causalMag, params, options, out);
     }
     if (stats != nullptr) {
         stats->meanDisagreementDeg = sumDeg / static_cast<double>(n);

@@ -47,13 +47,26 @@ struct SmootherOptions {
     // better where the field is the same everywhere, worse on BROAD, whose field during the
     // motion is a few degrees off its rest direction (docs/reprocess.md).
     bool forwardHeading = true;
+    // Between two rests (the filter's rest detector, each at least minAnchorRestS long and at
+    // most maxBridgeS apart), the heading from the gyroscope alone: integrated forward from the
+    // first rest and backward from the second, each with the bias measured at its rest (the
+    // mean rate there, interpolated between them), combined with weights falling linearly with
+    // the time from each (the variance of integrated rate noise grows linearly), each rest's
+    // heading the field's mean over it. The field a sensor reads as it moves is not the one it
+    // reads at rest (a room's field varies from place to place: BROAD's during the motion lies
+    // 2-6 deg off its rest direction, docs/reprocess.md); still, the field is averaged over
+    // seconds in one place. Elsewhere (a take without two rests) the heading is as above.
+    bool restAnchoredHeading = false;
+    double minAnchorRestS = 2.0;
+    double maxBridgeS = 300.0;
     // Each run's steady-state error variance (rad^2): where the runs disagree after a clip, the
     // disagreement beyond this is laid on the run that passed the clip.
     double steadyVarRad2 = 3.0e-4;
 };
 
 // The heading choice by its name on the command line ("causal": forwardHeading, "both": the
-// two runs' headings combined like the inclinations); false for any other name.
+// two runs' headings combined like the inclinations, "rest": the causal heading bridged by the
+// gyroscope between rests, restAnchoredHeading); false for any other name.
 bool setSmoothHeading(SmootherOptions& o, std::string_view name);
 
 // One orientation (sensor -> ENU) per sample, from the filter with `params` (its rates: the

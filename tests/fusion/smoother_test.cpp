@@ -209,12 +209,117 @@ TEST(Smoother, BothRunsHeadingsTogetherHaveNoLag) {
     EXPECT_LT(bothDeg, 0.3 * causalDeg) << "causal heading " << causalDeg;
 }
 
+// Still for 10 s, moved by hand for 60 s where the field's horizontal part points 5 deg east
+// of where it points at the rest places (a room's field varies from place to place), still
+// again for 10 s; the gyroscope has a bias. `secondRest` false: the take ends moving.
+struct RestsTake {
+    test::SynthRun run;
+    std::vector<SmootherSample> samples;
+};
+
+RestsTake restsTake(bool secondRest) {
+    test::SynthConfig c;
+    c.rateHz = kRateHz;
+    c.gyrBiasRadS = Vec3d(0.002, -0.003, 0.004);
+    const double horizontal = std::hypot(c.magEarthUt.x(), c.magEarthUt.y());
+    const double east = horizontal * std::tan(5.0 * 3.14159265358979323846 / 180.0);
+    const auto moving = [secondRest](double t) { return t >= 10.0 && (t < 70.0 || !secondRest); };
+    c.magDisturbanceEarthUt = [moving, east](double t) -> Vec3d {
+        return moving(t) ? Vec3d(east, 0.0, 0.0) : Vec3d::Zero();
+    };
+    const auto hand = test::wobble(1.5);
+    RestsTake take;
+    take.run = test::synthesize(c, Quatd::Identity(), 80.0, [&](double t) -> Vec3d {
+        return moving(t) ? hand(t) : Vec3d::Zero();
+    });
+    for (const ImuSample& in : take.run.samples) {
+        SmootherSample s;
+        s.gyrRadS = in.gyrRadS;
+        s.accMps2 = in.accMps2;
+        s.magUt = in.magUt;
+        s.magFresh = true;
+        take.samples.push_back(s);
+    }
+    return take;
+}
+
+double meanHeadingErrorDeg(const std::vector<Quatd>& est, const std::vector<Quatd>& truth,
+                           double fromS, double toS) {
+    double sum = 0;
+    int count = 0;
+    for (auto k = static_cast<std::size_t>(fromS * kRateHz);
+         k < static_cast<std::size_t>(toS * kRateHz); ++k) {
+        sum += std::abs(test::headingDeg(est[k], truth[k]));
+        ++count;
+    }
+    return sum / count;
+}
+
+TEST(Smoother, BetweenTwoRestsTheHeadingIsTheGyroscopesAnchoredOnTheFieldAtRest) {
+    const RestsTake take = restsTake(true);
+    const FilterParams p = paramsAt100Hz();
+    const auto causalHeading = smoothOrientations(take.samples, p);
+    SmootherOptions rest;
+    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
+    const auto bridged = smoothOrientations(take.samples, p, rest);
+    const auto& truth = take.run.truth;
+    // The causal heading follows the field of the place the sensor moves in; the gyroscope's,
+    // anchored at both rests and its bias measured there, does not.
+    const double causalDeg = meanHeadingErrorDeg(causalHeading, truth, 30.0, 70.0);
+    const double bridgedDeg = meanHeadingErrorDeg(bridged, truth, 30.0, 70.0);
+    EXPECT_GT(causalDeg, 2.0);
+    EXPECT_LT(bridgedDeg, 0.5) << "causal " << causalDeg;
+    EXPECT_LT(meanHeadingErrorDeg(bridged, truth, 10.0, 30.0), 0.5);
+    EXPECT_LT(meanHeadingErrorDeg(bridged, truth, 72.0, 80.0), 0.5);
+    // The inclination is the smoother's either way.
+    for (std::size_t k = 0; k < truth.size(); k += 50) {
+        ASSERT_NEAR(test::inclinationDeg(bridged[k], truth[k]),
+                    test::inclinationDeg(causalHeading[k], truth[k]), 0.05)
+            << k;
+    }
+}
+
+TEST(Smoother, WithoutASecondRestTheRestHeadingIsTheCausalOne) {
+    const RestsTake take = restsTake(false);
+    const FilterParams p = paramsAt100Hz();
+    const auto causalHeading = smoothOrientations(take.samples, p);
+    SmootherOptions rest;
+    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
+    const auto same = smoothOrientations(take.samples, p, rest);
+    ASSERT_EQ(same.size(), causalHeading.size());
+    for (std::size_t k = 0; k < same.size(); ++k) {
+        ASSERT_EQ(same[k].coeffs(), causalHeading[k].coeffs()) << k;
+    }
+}
+
+// One glitched rate between the rests (the filter rejects it): integrated, it would turn the
+// bridge by tens of radians; the take keeps the causal heading instead.
+TEST(Smoother, AGlitchBetweenTheRestsLeavesTheCausalHeading) {
+    RestsTake take = restsTake(true);
+    take.samples[4000].gyrRadS.x() = 5000.0;
+    const FilterParams p = paramsAt100Hz();
+    const auto causalHeading = smoothOrientations(take.samples, p);
+    SmootherOptions rest;
+    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
+    const auto same = smoothOrientations(take.samples, p, rest);
+    for (std::size_t k = 0; k < same.size(); ++k) {
+        ASSERT_TRUE(same[k].coeffs().allFinite()) << k;
+        ASSERT_EQ(same[k].coeffs(), causalHeading[k].coeffs()) << k;
+    }
+}
+
 TEST(Smoother, TheHeadingChoiceIsNamed) {
     SmootherOptions o;
     EXPECT_TRUE(setSmoothHeading(o, "both"));
     EXPECT_FALSE(o.forwardHeading);
     EXPECT_TRUE(setSmoothHeading(o, "causal"));
     EXPECT_TRUE(o.forwardHeading);
+    EXPECT_FALSE(o.restAnchoredHeading);
+    EXPECT_TRUE(setSmoothHeading(o, "rest"));
+    EXPECT_TRUE(o.forwardHeading);
+    EXPECT_TRUE(o.restAnchoredHeading);
+    EXPECT_TRUE(setSmoothHeading(o, "causal"));
+    EXPECT_FALSE(o.restAnchoredHeading);
     EXPECT_FALSE(setSmoothHeading(o, "forward"));
     EXPECT_TRUE(o.forwardHeading);
 }
