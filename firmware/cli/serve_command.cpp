@@ -57,6 +57,7 @@ struct ServeOptions {
     std::string statusFile;
     int threads = 24;
     int maxStreams = 12;
+    int maxDownloads = 6;
     // Virtual suit: the subject first holds this pose (tpose, npose) for leadInS seconds.
     std::string leadIn;
     double leadInS = 8;
@@ -272,6 +273,7 @@ int runServe(const ServeOptions& o) {
     wo.preview = preview;
     wo.threads = o.threads;
     wo.maxStreams = o.maxStreams;
+    wo.maxDownloads = o.maxDownloads;
     auto web = serve::WebServer::start(hub, b, wo);
     if (!web) {
         fmt::print(stderr, "caphub serve: {}\n", web.error().message);
@@ -377,6 +379,11 @@ void addServeCommand(CLI::App& app, int& exitCode) {
         ->capture_default_str();
     cmd->add_option("--max-streams", o->maxStreams,
                     "Live streams (events, poses, MJPEG) served at once; the rest get 503")
+        ->check(finiteRange(1, 254))
+        ->capture_default_str();
+    cmd->add_option("--max-downloads", o->maxDownloads,
+                    "Downloads (takes, exports) served at once; the rest get 503. Streams and "
+                    "downloads together leave at least 2 of the HTTP threads for requests")
         ->check(finiteRange(1, 254))
         ->capture_default_str();
     cmd->callback([&exitCode, o] { exitCode = runServe(*o); });

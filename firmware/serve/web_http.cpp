@@ -76,7 +76,7 @@ std::string hostOf(const std::string& header) {
 
 // Streams a file in 64 KiB pieces; `removeAfter` deletes it when the response is done.
 void streamFile(httplib::Response& res, const fs::path& path, const std::string& mime,
-                const std::string& downloadName, bool removeAfter) {
+                const std::string& downloadName, bool removeAfter, std::function<void()> done) {
     std::error_code ec;
     const auto size = fs::file_size(path, ec);
     auto in = std::make_shared<std::ifstream>(path, std::ios::binary);
@@ -84,6 +84,9 @@ void streamFile(httplib::Response& res, const fs::path& path, const std::string&
         fail(res, 500, fmt::format("cannot read '{}'", downloadName));
         if (removeAfter) {
             fs::remove(path, ec);
+        }
+        if (done) {
+            done();
         }
         return;
     }
@@ -98,10 +101,13 @@ void streamFile(httplib::Response& res, const fs::path& path, const std::string&
             const auto n = static_cast<std::size_t>(in->gcount());
             return n > 0 && sink.write(buf.data(), n);
         },
-        [path, removeAfter](bool) {
+        [path, removeAfter, done = std::move(done)](bool) {
             if (removeAfter) {
                 std::error_code e;
                 fs::remove(path, e);
+            }
+            if (done) {
+                done();
             }
         });
 }

@@ -161,6 +161,33 @@ std::function<void(bool)> WebServer::State::releaseStream() {
     return [this](bool) { streams.fetch_sub(1); };
 }
 
+WebServer::State::DownloadSlot::DownloadSlot(std::atomic<int>& count, int max,
+                                             httplib::Response& res)
+    : count_(count) {
+    if (count_.fetch_add(1) >= max) {
+        count_.fetch_sub(1);
+        res.set_header("Retry-After", "10");
+        fail(res, 503, fmt::format("all {} downloads are in use; try again", max));
+        return;
+    }
+    held_ = true;
+}
+
+void WebServer::State::DownloadSlot::release() {
+    if (held_) {
+        held_ = false;
+        count_.fetch_sub(1);
+    }
+}
+
+std::function<void()> WebServer::State::DownloadSlot::handOver() {
+    if (!held_) {
+        return {};
+    }
+    held_ = false;
+    return [&count = count_] { count.fetch_sub(1); };
+}
+
 Handler WebServer::State::eventStream(
     std::function<std::function<bool(httplib::DataSink&)>()> makeNext) {
     return guarded([this, makeNext](const httplib::Request&, httplib::Response& res) {

@@ -53,8 +53,13 @@ Result<std::unique_ptr<WebServer>> WebServer::start(Hub& hub, const board::Board
     if (options.port < 0 || options.port > 65535) {
         return Error{EINVAL, fmt::format("port {}: expected 0 to 65535", options.port)};
     }
-    if (options.threads < 4 || options.maxStreams < 1 || options.maxStreams > options.threads - 2) {
-        return Error{EINVAL, "expected at least 4 threads and at most threads - 2 streams"};
+    if (options.threads < 4 || options.maxStreams < 1 || options.maxDownloads < 1 ||
+        options.maxStreams + options.maxDownloads > options.threads - 2) {
+        return Error{EINVAL,
+                     fmt::format("expected at least 4 threads, one stream and one download, and "
+                                 "at most threads - 2 streams and downloads together ({} + {} of "
+                                 "{} threads)",
+                                 options.maxStreams, options.maxDownloads, options.threads)};
     }
     if (!(options.requestTimeoutS >= 0.001 && options.requestTimeoutS <= 3600)) {
         return Error{EINVAL, "expected a request timeout of 0.001 to 3600 s"};

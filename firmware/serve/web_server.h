@@ -36,6 +36,10 @@ struct WebOptions {
     // request per connection (no keep-alive: an idle connection would hold a thread).
     int threads = 24;
     int maxStreams = 12;
+    // Of the workers, at most maxDownloads held by downloads (a take, an export): a client that
+    // reads a download slowly holds its worker for as long as it keeps reading, and without a
+    // bound such clients could hold them all.
+    int maxDownloads = 6;
     std::size_t maxBodyBytes = 16 * 1024;
     int timeoutS = 5;
     // A request (line, headers and body) must arrive within this of its connection's accept: a

@@ -53,9 +53,9 @@ std::string cookieValue(const httplib::Request& req, const std::string& name);
 // The host part of a Host header ("127.0.0.1:8080", "[::1]:8080", "localhost").
 std::string hostOf(const std::string& header);
 // Streams a file in 64 KiB pieces as a download; `removeAfter` deletes it when the response is
-// done (or could not start).
+// done (or could not start), and `done` (a download slot's release) is called then too.
 void streamFile(httplib::Response& res, const std::filesystem::path& path, const std::string& mime,
-                const std::string& downloadName, bool removeAfter);
+                const std::string& downloadName, bool removeAfter, std::function<void()> done);
 // A query parameter as a number >= 0 (none: nullopt); a bad one sets `error`.
 std::optional<double> numberParam(const httplib::Request& req, const char* key, std::string& error);
 
@@ -88,6 +88,7 @@ struct WebServer::State {
     bool stopping = false;
 
     std::atomic<int> streams{0};
+    std::atomic<int> downloads{0};
 
     // The body calibration's countdown, for the page (wall time).
     std::mutex calibrationMutex;
@@ -145,6 +146,23 @@ struct WebServer::State {
     // gives it back (the stream's done-callback).
     bool takeStream(httplib::Response& res);
     std::function<void(bool)> releaseStream();
+    // Reserves one of the download slots; false (and 503) when all are taken. The slot is given
+    // back by the release streamFile() is handed, or by release() of a slot never handed over.
+    class DownloadSlot {
+    public:
+        DownloadSlot(std::atomic<int>& count, int max, httplib::Response& res);
+        ~DownloadSlot() { release(); }
+        DownloadSlot(const DownloadSlot&) = delete;
+        DownloadSlot& operator=(const DownloadSlot&) = delete;
+        bool held() const { return held_; }
+        void release();
+        // The slot's release, for the download's end (streamFile); this object lets go of it.
+        std::function<void()> handOver();
+
+    private:
+        std::atomic<int>& count_;
+        bool held_ = false;
+    };
     // A guarded stream of Server-Sent Events in a stream slot: makeNext() gives each client its
     // writer of the next event (waiting a while for one); the writer's false ends the stream.
     Handler eventStream(std::function<std::function<bool(httplib::DataSink&)>()> makeNext);

@@ -100,9 +100,13 @@ void WebServer::State::takeRoutes() {
                    reply(res, 200, Json{{"takes", list}});
                }));
     server.Get(R"(/api/takes/([^/]+)/raw)",
-               takeHandler(false, [](const httplib::Request&, httplib::Response& res,
-                                     const std::string& name, const fs::path& path) {
-                   streamFile(res, path, "application/octet-stream", name, false);
+               takeHandler(false, [s](const httplib::Request&, httplib::Response& res,
+                                      const std::string& name, const fs::path& path) {
+                   State::DownloadSlot slot(s->downloads, s->options.maxDownloads, res);
+                   if (!slot.held()) {
+                       return;
+                   }
+                   streamFile(res, path, "application/octet-stream", name, false, slot.handOver());
                }));
     server.Get(R"(/api/takes/([^/]+)/export)",
                takeHandler(false, [s](const httplib::Request& req, httplib::Response& res,
@@ -145,6 +149,10 @@ void WebServer::State::takeRoutes() {
                    }
                    if (!error.empty()) {
                        fail(res, 400, error);
+                       return;
+                   }
+                   State::DownloadSlot slot(s->downloads, s->options.maxDownloads, res);
+                   if (!slot.held()) {
                        return;
                    }
                    // Answered at once: a request waiting up to 30 s for the export before it held a
@@ -199,7 +207,8 @@ void WebServer::State::takeRoutes() {
                    }
                    res.set_header("X-Caphub-Frames", std::to_string(summary->frames));
                    streamFile(res, out, mimeOf(o.format),
-                              fs::path(name).stem().string() + extensionOf(o.format), true);
+                              fs::path(name).stem().string() + extensionOf(o.format), true,
+                              slot.handOver());
                }));
     server.Get(R"(/api/takes/([^/]+))",
                takeHandler(false, [](const httplib::Request&, httplib::Response& res,

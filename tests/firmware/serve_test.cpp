@@ -689,6 +689,65 @@ TEST(Serve, ClientsSendingTheirRequestsAByteAtATimeDoNotHoldTheWorkers) {
               << " s\n";
 }
 
+// Clients that asked for a download and then read it slowly (here: not at all) each held a
+// worker for as long as they went on, and enough of them held every worker. Downloads now
+// have their own slots (WebOptions::maxDownloads, 6): the seventh is refused at once, the API
+// is still answered, and a slot comes back when its client goes.
+TEST(Serve, ClientsReadingDownloadsSlowlyHoldOnlyTheDownloadSlots) {
+    ServeRig rig("slow-downloads");
+    Session s(rig.port());
+    // A take larger than the sockets' buffers hold.
+    constexpr std::uintmax_t kBytes = 64u << 20;
+    std::ofstream(rig.recordings / "big.cap").close();
+    fs::resize_file(rig.recordings / "big.cap", kBytes);
+    const std::string request =
+        "GET /api/takes/big.cap/raw HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+        "Cookie: " +
+        s.cookie + "\r\n\r\n";
+    constexpr int kSlots = 6;
+    std::vector<int> stuck;
+    for (int i = 0; i < kSlots; ++i) {
+        const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+        const int small = 4096;
+        ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+        sockaddr_in a{};
+        a.sin_family = AF_INET;
+        a.sin_port = htons(static_cast<std::uint16_t>(rig.port()));
+        a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+        ASSERT_EQ(::send(fd, request.data(), request.size(), MSG_NOSIGNAL),
+                  static_cast<ssize_t>(request.size()));
+        stuck.push_back(fd);
+    }
+    // Each holds its slot once its answer has begun.
+    for (int fd : stuck) {
+        pollfd p{fd, POLLIN, 0};
+        ASSERT_EQ(::poll(&p, 1, 10000), 1);
+    }
+    auto refused = s.get("/api/takes/big.cap/raw");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 503);
+    EXPECT_NE(refused->body.find("all 6 downloads are in use"), std::string::npos) << refused->body;
+    EXPECT_EQ(status(s.get("/api/state")).substr(0, 3), "200");
+    ::close(stuck.front());
+    stuck.erase(stuck.begin());
+    int code = -1;
+    std::size_t got = 0;
+    for (int i = 0; i < 50 && code != 200; ++i) {
+        auto r = s.get("/api/takes/big.cap/raw");
+        code = r ? r->status : -1;
+        got = r ? r->body.size() : 0;
+        if (code != 200) {
+            std::this_thread::sleep_for(milliseconds(100));
+        }
+    }
+    EXPECT_EQ(code, 200);
+    EXPECT_EQ(got, kBytes);
+    for (int fd : stuck) {
+        ::close(fd);
+    }
+}
+
 TEST(Serve, FiftyConcurrentClientsAreAllServedWhileTheCaptureLosesNoSample) {
     ServeRig rig("load");
     Session s(rig.port());
