@@ -591,6 +591,42 @@ def check_addon_receiver(addon_parent):
         check(sum(counts) == 200 - 63, f"add-on receiver: the burst's polls gave {counts}")
     rx.close()
 
+    # Another machine on the network sending a well-formed stream of its own (here from
+    # 127.0.0.2): its skeleton does not replace the hub's nor its frames pose anything; they are
+    # counted as foreign. A receiver given the hub's address takes nothing from anyone else, even
+    # first.
+    rx = receiver.Receiver(0, "127.0.0.1")
+    other = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    other.bind(("127.0.0.2", 0))
+    tx.sendto(native_skeleton(), ("127.0.0.1", rx.port))
+    tx.sendto(native_frame(7000), ("127.0.0.1", rx.port))
+    seen, error = poll_for(rx, 7000)
+    check(error is None and rx.hub == "127.0.0.1", f"add-on receiver: the hub is {rx.hub}")
+    foreign_parents = [-1] + [0] * 20
+    other.sendto(native_skeleton(foreign_parents), ("127.0.0.1", rx.port))
+    other.sendto(native_frame(7001), ("127.0.0.1", rx.port))
+    tx.sendto(native_frame(7002), ("127.0.0.1", rx.port))
+    seen, error = poll_for(rx, 7002)
+    check(error is None and [f.serial for f in seen] == [7002] and rx.skeleton.parents == PARENTS
+          and rx.foreign_packets == 2 and rx.bad_packets == 0,
+          f"add-on receiver, another sender: frames {[f.serial for f in seen]}, foreign "
+          f"{rx.foreign_packets}, skeleton kept {rx.skeleton.parents == PARENTS}")
+    rx.close()
+    rx = receiver.Receiver(0, "127.0.0.1", hub="127.0.0.1")
+    other.sendto(native_skeleton(foreign_parents), ("127.0.0.1", rx.port))
+    other.sendto(native_frame(7003), ("127.0.0.1", rx.port))
+    tx.sendto(native_skeleton(), ("127.0.0.1", rx.port))
+    tx.sendto(native_frame(7004), ("127.0.0.1", rx.port))
+    seen, error = poll_for(rx, 7004)
+    check(error is None and [f.serial for f in seen] == [7004] and rx.skeleton.parents == PARENTS
+          and rx.foreign_packets == 2,
+          f"add-on receiver, the hub given: frames {[f.serial for f in seen]}, foreign "
+          f"{rx.foreign_packets}")
+    print(f"add-on receiver: another sender's skeleton and frame skipped ({rx.foreign_packets} "
+          f"foreign datagrams), the hub's kept")
+    other.close()
+    rx.close()
+
     # A flood (a sender as fast as it can for 2 s): every poll() returns within a small time
     # with at most 256 frames (MAX_DATAGRAMS; one with newest_only), and the receiver still works.
     rx = receiver.Receiver(0, "127.0.0.1")

@@ -12,6 +12,7 @@ bl_info = {
     "category": "Animation",
 }
 
+import ipaddress
 import traceback
 
 import bpy
@@ -188,6 +189,9 @@ def _timer():
 class CaphubLiveSettings(bpy.types.PropertyGroup):
     port: IntProperty(name="Port", default=39600, min=1, max=65535,
                       description="UDP port the hub streams to (caphub run --stream caphub:HOST:PORT)")
+    hub: StringProperty(name="Hub",
+                        description="The hub's IP address: datagrams from any other are "
+                                    "skipped (empty: the first address that sends the stream)")
     target: StringProperty(name="Armature",
                            description="The armature to drive (empty: create caphub's)")
     names: EnumProperty(name="Bone names", items=[
@@ -209,8 +213,16 @@ class CAPHUB_OT_connect(bpy.types.Operator):
 
     def execute(self, context):
         disconnect()
+        s = context.scene.caphub_live
+        hub = s.hub.strip() or None
+        if hub is not None:
+            try:
+                hub = str(ipaddress.IPv4Address(hub))
+            except ValueError:
+                self.report({"ERROR"}, f"hub '{hub}': expected an IPv4 address (or nothing)")
+                return {"CANCELLED"}
         try:
-            _state["receiver"] = Receiver(context.scene.caphub_live.port)
+            _state["receiver"] = Receiver(s.port, hub=hub)
         except OSError as e:
             self.report({"ERROR"}, f"port {context.scene.caphub_live.port}: {e}")
             return {"CANCELLED"}
@@ -285,6 +297,7 @@ class CAPHUB_PT_live(bpy.types.Panel):
         s = context.scene.caphub_live
         col = self.layout.column()
         col.prop(s, "port")
+        col.prop(s, "hub")
         col.prop_search(s, "target", bpy.data, "objects")
         col.prop(s, "names")
         if s.names == "FILE":
@@ -299,8 +312,12 @@ class CAPHUB_PT_live(bpy.types.Panel):
             last = _state["last"]
             col.label(text=f"{rx.frames_received} frames" +
                       (f", pose {last.serial}" if last else ", waiting"))
+            if rx.hub:
+                col.label(text=f"from {rx.hub}")
             if rx.bad_packets:
                 col.label(text=f"{rx.bad_packets} bad datagrams skipped")
+            if rx.foreign_packets:
+                col.label(text=f"{rx.foreign_packets} datagrams from other addresses skipped")
         col.separator()
         col.operator("caphub.import_bvh")
         col.operator("caphub.import_glb")

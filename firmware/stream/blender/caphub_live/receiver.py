@@ -3,7 +3,10 @@ skeleton's description. No bpy here: the add-on polls it from a timer.
 
 Anything may arrive on the port (it listens on every interface). A datagram that is not a
 well-formed caphub bundle, or whose frame does not fit the skeleton, is counted in bad_packets
-and skipped whole; one poll() reads a bounded number of datagrams in a bounded time."""
+and skipped whole; one poll() reads a bounded number of datagrams in a bounded time. The hub is
+one address: the one given, or else the first to send a well-formed datagram; datagrams from
+any other address are counted in foreign_packets and skipped (another machine's skeleton would
+otherwise replace the hub's, and its frames pose the armature)."""
 import math
 import socket
 import time
@@ -67,7 +70,7 @@ class Skeleton:
 
 
 class Receiver:
-    def __init__(self, port, host="0.0.0.0"):
+    def __init__(self, port, host="0.0.0.0", hub=None):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
         self.sock.bind((host, port))
@@ -77,6 +80,8 @@ class Receiver:
         self.frames_received = 0  # good frames read (whether returned or superseded)
         self.frames_skipped = 0  # good frames not returned: a newer one came in the same poll()
         self.bad_packets = 0  # datagrams refused whole (malformed, or not fitting the skeleton)
+        self.hub = hub or None  # the sender's IP address (None: the first well-formed one)
+        self.foreign_packets = 0  # datagrams from another address than the hub's
         self.max_datagrams, self.budget_s = MAX_DATAGRAMS, BUDGET_S
 
     def close(self):
@@ -90,14 +95,18 @@ class Receiver:
         deadline = time.monotonic() + self.budget_s
         for _ in range(self.max_datagrams):
             try:
-                data = self.sock.recv(65536)
+                data, sender = self.sock.recvfrom(65536)
             except (BlockingIOError, InterruptedError):
                 break
+            if self.hub is not None and sender[0] != self.hub:
+                self.foreign_packets += 1
+                continue
             try:
                 skeleton, frame = self._datagram(data)
             except ValueError:  # also UnicodeDecodeError
                 self.bad_packets += 1
             else:
+                self.hub = sender[0]
                 if skeleton is not None:
                     if not skeleton.same_as(self.skeleton):
                         self.frames_skipped += len(frames)
