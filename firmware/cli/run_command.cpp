@@ -248,7 +248,15 @@ int run(const RunOptions& o) {
             !o.record.empty() ? fs::path(o.record).parent_path()
                               : (o.out.empty() ? fs::path(b.outputs.recordings) : fs::path(o.out));
         std::error_code ec;
-        if (!dir.empty()) {
+        if (!o.record.empty()) {
+            // A file named: its folder must be there, as for every other command's output (a
+            // mistyped folder would otherwise be made, and the take looked for elsewhere).
+            if (!dir.empty() && !fs::exists(dir, ec)) {
+                fmt::print(stderr, "caphub run: --record {}: the folder '{}' does not exist\n",
+                           o.record, dir.string());
+                return kExitUsage;
+            }
+        } else if (!dir.empty()) {
             fs::create_directories(dir, ec);
         }
         if (ec) {

@@ -254,6 +254,27 @@ TEST(ExitCodes, EveryInputThatCannotBeUsedExitsTwo) {
     }
 }
 
+// `run --record missing/dir/take.cap` made the folders and recorded there: a mistyped folder
+// was made, and the take looked for where it was meant to go. The folder must be there, as for
+// every other command's output file.
+TEST(FileInputs, ARecordingIntoAFolderThatIsNotThereIsRefused) {
+    const std::string missing = path("no-such-folder");
+    fs::remove_all(missing);
+    const CliRun r = caphub("run --board sim-upper10 --record " + missing +
+                            "/take.cap --duration 1 --no-preview");
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+    EXPECT_NE(r.output.find("--record " + missing + "/take.cap: the folder '" + missing +
+                            "' does not exist"),
+              std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(missing));
+    const std::string file = writeFile("a-file", "x");
+    const CliRun f =
+        caphub("run --board sim-upper10 --record " + file + "/take.cap --duration 1 --no-preview");
+    EXPECT_EQ(f.exitCode, 2) << f.output;
+    EXPECT_NE(f.output.find("Not a directory"), std::string::npos) << f.output;
+}
+
 // 1: the work started and failed (covered with the output above and by the full-disk capture
 // in cli_test.cpp); and status's answer when no hub has run where it looks by default.
 TEST(ExitCodes, StatusWithNoHubAtTheDefaultPlaceExitsOne) {
