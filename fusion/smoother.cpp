@@ -240,26 +240,6 @@ std::vector<RestStretch> restStretches(const std::vector<SmootherSample>& sample
     return out;
 }
 
-// The turn about up that brings the mean horizontal field over a rest, in the frame of the
-// estimate, to north (as the filter's heading correction does), from the samples whose field
-// the causal run trusted; none without them.
-std::optional<double> restFieldTurn(const std::vector<SmootherSample>& samples,
-                                    const std::vector<char>& magUsed, const std::vector<Quatd>& q,
-                                    const RestStretch& r) {
-    Vec3d sum = Vec3d::Zero();
-    int used = 0;
-    for (std::size_t k = r.first; k <= r.last; ++k) {
-        if (samples[k].magFresh && magUsed[k] != 0) {
-            sum += (q[k] * samples[k].magUt).normalized();
-            ++used;
-        }
-    }
-    if (used == 0 || std::hypot(sum.x(), sum.y()) < 1e-9) {
-        return std::nullopt;
-    }
-    return std::atan2(sum.x(), sum.y());
-}
-
 // The rotation a rate `w` (rad/s) makes over `dt`, in the sensor frame.
 Quatd rotationOver(const Vec3d& w, double dt) {
     const double angle = w.norm() * dt;
@@ -267,6 +247,38 @@ Quatd rotationOver(const Vec3d& w, double dt) {
         return Quatd::Identity();
     }
     return Quatd(Eigen::AngleAxisd(angle, w / w.norm()));
+}
+
+// The field over a rest, in the sensor's frame at each of its samples (empty: none). The
+// samples whose field the causal run trusted are carried into the frame of the rest's first
+// sample by the rates (less the rest's mean, the bias) and averaged there: a rest is a sensor
+// turning slower than the rest detector's 2 deg/s, not one held by a vice, and the estimate's
+// own heading may still be moving there (the causal run converging), so neither the raw readings
+// nor the estimate's frame hold the field still.
+std::vector<Vec3d> restField(const std::vector<SmootherSample>& samples,
+                             const std::vector<char>& magUsed, const RestStretch& r, double dt) {
+    const std::size_t n = r.last - r.first + 1;
+    std::vector<Quatd> fromFirst(n, Quatd::Identity());  // sensor at sample -> at the first
+    Vec3d sum = Vec3d::Zero();
+    for (std::size_t j = 0; j < n; ++j) {
+        const SmootherSample& s = samples[r.first + j];
+        if (j > 0) {
+            fromFirst[j] =
+                (fromFirst[j - 1] * rotationOver(s.gyrRadS - r.meanRate, dt)).normalized();
+        }
+        if (s.magFresh && magUsed[r.first + j] != 0 && s.magUt.norm() > 0) {
+            sum += fromFirst[j] * s.magUt.normalized();
+        }
+    }
+    if (sum.norm() < 1e-9) {
+        return {};
+    }
+    const Vec3d mean = sum.normalized();
+    std::vector<Vec3d> out(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        out[j] = fromFirst[j].conjugate() * mean;
+    }
+    return out;
 }
 
 // restAnchoredHeading (SmootherOptions): the heading of `out` between consecutive rests from
@@ -309,9 +321,14 @@ void bridgeHeadingsBetweenRests(const std::vector<SmootherSample>& samples,
         if (anchors[i] == 0) {
             continue;
         }
-        if (const std::optional<double> turn = restFieldTurn(samples, magUsed, out, r)) {
-            for (std::size_t k = r.first; k <= r.last; ++k) {
-                anchored[k] = (aboutUp(*turn) * out[k]).normalized();
+        // Each sample of the rest turned so that the rest's field points north in it (the
+        // filter's heading correction): the estimate's own heading may still move there.
+        const std::vector<Vec3d> field = restField(samples, magUsed, r, dt);
+        for (std::size_t j = 0; j < field.size(); ++j) {
+            const std::size_t k = r.first + j;
+            const Vec3d h = out[k] * field[j];
+            if (std::hypot(h.x(), h.y()) > 1e-9) {
+                anchored[k] = (aboutUp(std::atan2(h.x(), h.y())) * out[k]).normalized();
             }
         }
     }
