@@ -255,13 +255,22 @@ double meanHeadingErrorDeg(const std::vector<Quatd>& est, const std::vector<Quat
     return sum / count;
 }
 
+// The take smoothed with the causal heading and with the rest heading.
+struct Headings {
+    std::vector<Quatd> causal;
+    std::vector<Quatd> rest;
+};
+
+Headings headingsOf(const std::vector<SmootherSample>& samples) {
+    const FilterParams p = paramsAt100Hz();
+    SmootherOptions rest;
+    EXPECT_TRUE(setSmoothHeading(rest, "rest"));
+    return {smoothOrientations(samples, p), smoothOrientations(samples, p, rest)};
+}
+
 TEST(Smoother, BetweenTwoRestsTheHeadingIsTheGyroscopesAnchoredOnTheFieldAtRest) {
     const RestsTake take = restsTake(true);
-    const FilterParams p = paramsAt100Hz();
-    const auto causalHeading = smoothOrientations(take.samples, p);
-    SmootherOptions rest;
-    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
-    const auto bridged = smoothOrientations(take.samples, p, rest);
+    const auto [causalHeading, bridged] = headingsOf(take.samples);
     const auto& truth = take.run.truth;
     // The causal heading follows the field of the place the sensor moves in; the gyroscope's,
     // anchored at both rests and its bias measured there, does not.
@@ -281,11 +290,7 @@ TEST(Smoother, BetweenTwoRestsTheHeadingIsTheGyroscopesAnchoredOnTheFieldAtRest)
 
 TEST(Smoother, WithoutASecondRestTheRestHeadingIsTheCausalOne) {
     const RestsTake take = restsTake(false);
-    const FilterParams p = paramsAt100Hz();
-    const auto causalHeading = smoothOrientations(take.samples, p);
-    SmootherOptions rest;
-    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
-    const auto same = smoothOrientations(take.samples, p, rest);
+    const auto [causalHeading, same] = headingsOf(take.samples);
     ASSERT_EQ(same.size(), causalHeading.size());
     for (std::size_t k = 0; k < same.size(); ++k) {
         ASSERT_EQ(same[k].coeffs(), causalHeading[k].coeffs()) << k;
@@ -297,11 +302,8 @@ TEST(Smoother, WithoutASecondRestTheRestHeadingIsTheCausalOne) {
 TEST(Smoother, AGlitchBetweenTheRestsLeavesTheCausalHeading) {
     RestsTake take = restsTake(true);
     take.samples[4000].gyrRadS.x() = 5000.0;
-    const FilterParams p = paramsAt100Hz();
-    const auto causalHeading = smoothOrientations(take.samples, p);
-    SmootherOptions rest;
-    ASSERT_TRUE(setSmoothHeading(rest, "rest"));
-    const auto same = smoothOrientations(take.samples, p, rest);
+    const auto [causalHeading, same] = headingsOf(take.samples);
+    ASSERT_EQ(same.size(), causalHeading.size());
     for (std::size_t k = 0; k < same.size(); ++k) {
         ASSERT_TRUE(same[k].coeffs().allFinite()) << k;
         ASSERT_EQ(same[k].coeffs(), causalHeading[k].coeffs()) << k;
