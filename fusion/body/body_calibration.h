@@ -26,6 +26,10 @@ constexpr SegmentMask bit(Segment s) {
 constexpr bool has(SegmentMask m, int segment) {
     return (m >> segment) & 1U;
 }
+// Whether the root's translation is measured: it rests on the foot contacts, so both feet.
+constexpr bool rootTranslationMeasured(SegmentMask m) {
+    return has(m, idx(Segment::LHindfoot)) && has(m, idx(Segment::RHindfoot));
+}
 
 // Sensor orientations (q_ENU_sensor, from fusion), one per segment that has a sensor.
 struct SensorFrame {

@@ -270,7 +270,17 @@ const TrackedPose& BodyTracker::solveAt(Timestamp t) {
     out_.t = t;
     out_.pose = &solver_.pose();
     out_.valid = solver_.poseSolver().validSegments(present);
-    out_.aidEnuMps2 = options_.aidFilters ? aidingAcceleration(dtS) : std::nullopt;
+    if (!options_.aidFilters) {
+        out_.aidEnuMps2 = std::nullopt;
+    } else if (!rootTranslationMeasured(out_.valid)) {
+        // The root's motion is not measured (no sensor on a foot, or one out): its velocity comes
+        // from contacts of held segments, and its change is no acceleration of the body. The
+        // filters are told none.
+        rootVelocityValid_ = false;
+        out_.aidEnuMps2 = Vec3d::Zero();
+    } else {
+        out_.aidEnuMps2 = aidingAcceleration(dtS);
+    }
     return out_;
 }
 

@@ -21,11 +21,6 @@ bool independentJointMeasured(std::uint32_t measured, std::size_t j) {
            (ij.proximal < 0 || segmentMeasured(measured, ij.proximal));
 }
 
-bool rootTranslationMeasured(std::uint32_t measured) {
-    return segmentMeasured(measured, idx(Segment::LHindfoot)) &&
-           segmentMeasured(measured, idx(Segment::RHindfoot));
-}
-
 void PoseScorer::add(const Pose& solved, const BodyTruth& truth) {
     const Vec3d& trueRoot = truth.positionM[0];
     if (!lastTrueRootM_) {

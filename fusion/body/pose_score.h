@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "fusion/body/body_calibration.h"
 #include "fusion/body/kinematics.h"
 #include "fusion/body/skeleton.h"
 
@@ -68,8 +69,6 @@ struct PoseScore {
 
 // Whether the paper's independent joint j rests on measured segments only.
 bool independentJointMeasured(std::uint32_t measured, std::size_t j);
-// Whether the root's translation is measured: it rests on the foot contacts, so both feet.
-bool rootTranslationMeasured(std::uint32_t measured);
 
 class PoseScorer {
 public:

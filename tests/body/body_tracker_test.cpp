@@ -1003,6 +1003,50 @@ KneeRun walkOnTheKnees(BodyTrackerOptions o) {
     return r;
 }
 
+// The filters are told the body's acceleration from the root's velocity, which the foot
+// contacts give; without a foot measured the contacts are held segments', and the filters are
+// told no acceleration instead (a sparse suit without feet, or a foot's sensor out, was told the
+// held legs' stepping).
+TEST(BodyTracker, WithoutBothFeetMeasuredTheFiltersAreToldNoAcceleration) {
+    const Suit suit;
+    BodyTracker tracker(skeleton(), suit.sensors);
+    tracker.startCalibration(ReferencePoseKind::T, at(500ms));
+    const Pose tpose = testing::referencePose(ReferencePoseKind::T);
+    const int foot = suit.sensor(S::LHindfoot);
+    int aided = 0;
+    int toldNone = 0;
+    for (int k = 0; k < 700; ++k) {
+        const Timestamp t = at(kSample * k);
+        if (t == at(4s)) {
+            tracker.setSensorOnline(foot, false);
+        }
+        Pose pose = tpose;
+        const double s = std::max(0.0, (k - 200) * 0.01);  // stepping from 2 s
+        if (s > 0) {
+            const double phase = 2 * kPi * s;
+            const double swing = 25 * kDeg * std::sin(phase);
+            pose.qLocal[idx(S::LThigh)] = Quatd(Eigen::AngleAxisd(swing, Vec3d::UnitX()));
+            pose.qLocal[idx(S::RThigh)] = Quatd(Eigen::AngleAxisd(-swing, Vec3d::UnitX()));
+            worldFromLocal(pose);
+        }
+        feed(tracker, suit, t, pose, 0, suit.trueMounting, nullptr, t >= at(4s) ? foot : -1);
+        while (auto g = tracker.due(t)) {
+            const TrackedPose& p = tracker.solveAt(*g);
+            if (!p.aidEnuMps2) {
+                continue;
+            }
+            if (*g >= at(4s)) {
+                EXPECT_EQ(*p.aidEnuMps2, Vec3d::Zero()) << "at " << toNs(*g) << " ns";
+                ++toldNone;
+            } else if (p.aidEnuMps2->norm() > 1e-3) {
+                ++aided;
+            }
+        }
+    }
+    EXPECT_GT(aided, 10);
+    EXPECT_GT(toldNone, 100);
+}
+
 TEST(BodyTracker, TheKneesAxesSayHowFarTheCaptureHeadingIsOff) {
     // Estimated only (the default): the calibration stays, and the error it reports is what the
     // straps' common turn put into the capture heading.
