@@ -16,6 +16,7 @@
 #include <toml++/toml.h>
 
 #include "board/loader.h"
+#include "firmware/calibration_file.h"
 #include "firmware/cli/app.h"
 #include "firmware/cli/commands.h"
 #include "firmware/cli/import_broad.h"
@@ -241,6 +242,19 @@ int runXsensImport(const ImportArgs& a) {
         names.push_back(f.deviceId);
     }
     meta += importedBoardMetadata("imported-xsens", boardText, names, segments);
+    // MT Manager exports calibrated readings (the factory's calibration; the magnetometer's too,
+    // normalised to the local field): the recording says so, as a calibration file that leaves
+    // them as they are. Without it a reprocess took each magnetometer as raw, so a sensor whose
+    // raw heading it could not check got its mounting from the nominal heading, and the knee
+    // between two sensors that had the same field turned by tens of degrees.
+    CalibrationSet vendorCalibration;
+    for (const auto& name : names) {
+        fusion::SensorCalibration c;
+        c.hasMag = true;
+        vendorCalibration[name] = c;
+    }
+    meta += "\n[calibration]\npath = \"(the vendor's: the files' readings are calibrated)\"\n";
+    meta += fmt::format("text = {}\n", tomlString(formatCalibration(vendorCalibration)));
 
     // One time base: the packet counters of an Awinda take count the same packets; a file
     // starting later starts later in the take. The take starts 1 s into the capture clock.
