@@ -240,15 +240,6 @@ std::vector<RestStretch> restStretches(const std::vector<SmootherSample>& sample
     return out;
 }
 
-// The rotation a rate `w` (rad/s) makes over `dt`, in the sensor frame.
-Quatd rotationOver(const Vec3d& w, double dt) {
-    const double angle = w.norm() * dt;
-    if (angle < 1e-12) {
-        return Quatd::Identity();
-    }
-    return Quatd(Eigen::AngleAxisd(angle, w / w.norm()));
-}
-
 // The field over a rest, in the sensor's frame at each of its samples (empty: none). The
 // samples whose field the causal run trusted are carried into the frame of the rest's first
 // sample by the rates (less the rest's mean, the bias) and averaged there: a rest is a sensor
@@ -263,8 +254,7 @@ std::vector<Vec3d> restField(const std::vector<SmootherSample>& samples,
     for (std::size_t j = 0; j < n; ++j) {
         const SmootherSample& s = samples[r.first + j];
         if (j > 0) {
-            fromFirst[j] =
-                (fromFirst[j - 1] * rotationOver(s.gyrRadS - r.meanRate, dt)).normalized();
+            fromFirst[j] = integrateBodyRate(fromFirst[j - 1], Vec3d(s.gyrRadS - r.meanRate), dt);
         }
         if (s.magFresh && magUsed[r.first + j] != 0 && s.magUt.norm() > 0) {
             sum += fromFirst[j] * s.magUt.normalized();
@@ -305,7 +295,7 @@ void bridgeHeadingsBetweenRests(const std::vector<SmootherSample>& samples,
         }
         return true;
     };
-    std::vector<char> bridged(rests.size() + 1, 0);  // bridged[i]: rests i and i+1
+    std::vector<char> bridged(rests.size(), 0);  // bridged[i]: rests i and i+1
     std::vector<char> anchors(rests.size(), 0);
     for (std::size_t i = 0; i + 1 < rests.size(); ++i) {
         if (static_cast<double>(rests[i + 1].first - rests[i].last) * dt <= options.maxBridgeS &&
@@ -339,23 +329,22 @@ void bridgeHeadingsBetweenRests(const std::vector<SmootherSample>& samples,
         const RestStretch& a = rests[i];
         const RestStretch& b = rests[i + 1];
         const std::size_t span = b.first - a.last;  // samples from one anchor to the other
+        // The rate of sample a.last + j less the bias, interpolated between the rests' means.
+        const auto rate = [&](std::size_t j) -> Vec3d {
+            const double frac = static_cast<double>(j) / static_cast<double>(span);
+            return samples[a.last + j].gyrRadS - ((1.0 - frac) * a.meanRate + frac * b.meanRate);
+        };
         // Forward: the attitude at sample k from the anchor at a.last and the rates of samples
         // a.last+1 .. k (each rate the turn over the period that ends at its sample).
         std::vector<Quatd> forward(span + 1);
         forward[0] = anchored[a.last];
         for (std::size_t j = 1; j <= span; ++j) {
-            const double frac = static_cast<double>(j) / static_cast<double>(span);
-            const Vec3d bias = (1.0 - frac) * a.meanRate + frac * b.meanRate;
-            const Vec3d w = samples[a.last + j].gyrRadS - bias;
-            forward[j] = (forward[j - 1] * rotationOver(w, dt)).normalized();
+            forward[j] = integrateBodyRate(forward[j - 1], rate(j), dt);
         }
         // Backward from the anchor at b.first, undoing the same rates.
         Quatd backward = anchored[b.first];
         for (std::size_t j = span; j-- > 1;) {
-            const double fracNext = static_cast<double>(j + 1) / static_cast<double>(span);
-            const Vec3d bias = (1.0 - fracNext) * a.meanRate + fracNext * b.meanRate;
-            const Vec3d w = samples[a.last + j + 1].gyrRadS - bias;
-            backward = (backward * rotationOver(w, dt).conjugate()).normalized();
+            backward = integrateBodyRate(backward, Vec3d(-rate(j + 1)), dt);
             const std::size_t k = a.last + j;
             const double frac = static_cast<double>(j) / static_cast<double>(span);
             const double turnF = headingTurn(forward[j], out[k]);
