@@ -224,7 +224,7 @@ class CAPHUB_OT_connect(bpy.types.Operator):
         try:
             _state["receiver"] = Receiver(s.port, hub=hub)
         except OSError as e:
-            self.report({"ERROR"}, f"port {context.scene.caphub_live.port}: {e}")
+            self.report({"ERROR"}, f"port {s.port}: {e}")
             return {"CANCELLED"}
         _state["rest_root"], _state["t0_ns"], _state["errors"] = None, None, 0
         bpy.app.timers.register(_timer)
