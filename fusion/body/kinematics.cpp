@@ -37,15 +37,17 @@ Vec3d logUnit(const Quatd& q) {
     const double sign = q.w() < 0 ? -1.0 : 1.0;
     const Vec3d v = q.vec() * sign;
     const double w = q.w() * sign;
-    const double s = v.norm();
+    const double s2 = v.squaredNorm();
     // angle / s = 2 atan(x) / s with x = s / w. For x < 0.1 the series
-    // 2/w (1 - x^2/3 + x^4/5 - x^6/7 + x^8/9) leaves out x^10/11 < 1e-11 relative.
-    if (s < 0.1 * w) {
-        const double x2 = (s / w) * (s / w);
+    // 2/w (1 - x^2/3 + x^4/5 - x^6/7 + x^8/9) leaves out x^10/11 < 1e-11 relative; it needs no
+    // square root (most joint rates per frame take it).
+    if (s2 < 0.01 * w * w) {
+        const double x2 = s2 / (w * w);
         const double series =
             1.0 - x2 * (1.0 / 3 - x2 * (1.0 / 5 - x2 * (1.0 / 7 - x2 * (1.0 / 9))));
         return v * (2.0 / w * series);
     }
+    const double s = std::sqrt(s2);
     return v * (2.0 * std::atan2(s, w) / s);
 }
 

@@ -43,7 +43,8 @@ inline Vec3d pointOnSegment(const Pose& pose, int segment, const Vec3d& localM) 
 // The rotation vector of a unit quaternion (the logarithm map), for the per-frame paths: a
 // plain norm instead of stableNorm and, for angles below 11 deg (tan of the half angle < 0.1),
 // a series instead of atan2 (relative error < 1e-11). Agrees with toRotationVector of
-// hal/core/quaternion.h for unit quaternions.
+// hal/core/quaternion.h for unit quaternions; it takes only ratios of the components, so a
+// quaternion off the unit sphere by rounding (a product of unit ones) needs no normalising.
 Vec3d logUnit(const Quatd& q);
 
 // Joint velocities: per segment, the angular velocity of the segment relative to its parent,

@@ -181,7 +181,23 @@ SegmentMask PoseSolver::validSegments(SegmentMask present) const {
 }
 
 double applyJointLimits(const JointLimits& limits, Quatd& qLocal, bool clamp) {
-    const Vec3d rvDeg = logUnit(qLocal.normalized()) * kRadToDeg;
+    // Most joints are well inside their limits in most frames: bound the rotation vector and
+    // skip the logarithm when the whole bound is inside. For a unit quaternion with w > 0 it is
+    // the vector part times 2 atan(s / w) / s, a factor between 2 w and 2 / w (sin h cos h <=
+    // h <= tan h for the half angle h); the bound is widened by 1e-9 for rounding (the
+    // quaternion's norm is 1 within 1e-15).
+    const double sign = qLocal.w() < 0 ? -1.0 : 1.0;
+    const double w = qLocal.w() * sign;
+    if (w > 0.5) {
+        const Vec3d v = qLocal.vec() * (sign * kRadToDeg);
+        const Vec3d a = v * (2.0 * w * (1 - 1e-9));
+        const Vec3d b = v * (2.0 / w * (1 + 1e-9));
+        if ((a.cwiseMin(b).array() >= limits.minDeg.array()).all() &&
+            (a.cwiseMax(b).array() <= limits.maxDeg.array()).all()) {
+            return 0.0;
+        }
+    }
+    const Vec3d rvDeg = logUnit(qLocal) * kRadToDeg;  // logUnit does not depend on the norm
     const Vec3d clamped = rvDeg.cwiseMax(limits.minDeg).cwiseMin(limits.maxDeg);
     const double excess = (rvDeg - clamped).norm();
     if (clamp && excess > 0) {

@@ -35,7 +35,10 @@ const JointLimits kAnkle = lim(-25, 55, -30, 30, -25, 35);
 const JointLimits kToes = lim(-80, 40, -10, 10, -10, 10);
 const JointLimits kFree{};
 
-const std::array<JointInfo, kSegmentCount> kJoints = {{
+}  // namespace
+
+namespace detail {
+const std::array<JointInfo, kSegmentCount> kJointTable = {{
     {S::Pelvis, "humanoid_root", -1, JointKind::Root, 6, kFree},
     {S::L5, "vl5", idx(S::Pelvis), JointKind::Derived, 3, kSpine},
     {S::T12, "vt12", idx(S::L5), JointKind::Driven, 3, kSpine},
@@ -58,6 +61,11 @@ const std::array<JointInfo, kSegmentCount> kJoints = {{
     {S::RHindfoot, "r_talocrural", idx(S::RCalf), JointKind::Driven, 2, mirror(kAnkle)},
     {S::RMiddistal, "r_metatarsophalangeal", idx(S::RHindfoot), JointKind::Fixed, 1, mirror(kToes)},
 }};
+}  // namespace detail
+
+namespace {
+
+using detail::kJointTable;
 
 // Drillis & Contini (1966) as drawn in Winter, "Biomechanics and Motor Control of Human
 // Movement", fig. 4.1: lengths as fractions of the standing height H.
@@ -116,14 +124,14 @@ constexpr double kRightFootMass = 0.0145;
 }  // namespace
 
 const std::array<JointInfo, kSegmentCount>& joints() {
-    return kJoints;
+    return kJointTable;
 }
 
 const std::array<IndependentJoint, kIndependentJointCount>& independentJoints() {
     static const std::array<IndependentJoint, kIndependentJointCount> kIndependent = [] {
         std::array<IndependentJoint, kIndependentJointCount> out{};
         std::size_t n = 0;
-        for (const JointInfo& j : kJoints) {
+        for (const JointInfo& j : kJointTable) {
             const int seg = idx(j.segment);
             if (j.segment == S::T12) {
                 out[n++] = {"vl5+vt12", idx(S::Pelvis), seg, idx(S::L5)};
@@ -139,11 +147,7 @@ const std::array<IndependentJoint, kIndependentJointCount>& independentJoints() 
 }
 
 const JointInfo& jointInfo(Segment s) {
-    return kJoints[static_cast<std::size_t>(idx(s))];
-}
-
-int parentOf(int segment) {
-    return kJoints[static_cast<std::size_t>(segment)].parent;
+    return kJointTable[static_cast<std::size_t>(idx(s))];
 }
 
 std::string_view endEffectorName(EndEffector e) {
@@ -379,7 +383,7 @@ double segmentLengthM(const Dimensions& d, Segment s) {
 
 Skeleton::Skeleton(const Dimensions& d) : dims_(d) {
     for (int i = 0; i < kSegmentCount; ++i) {
-        const JointInfo& j = kJoints[static_cast<std::size_t>(i)];
+        const JointInfo& j = kJointTable[static_cast<std::size_t>(i)];
         Bone& b = bones_[static_cast<std::size_t>(i)];
         b.id = i;
         b.name = board::segmentName(j.segment);

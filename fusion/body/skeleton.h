@@ -50,7 +50,13 @@ struct JointInfo {
 // The joint table in tree order: every parent comes before its children.
 const std::array<JointInfo, kSegmentCount>& joints();
 const JointInfo& jointInfo(Segment s);
-int parentOf(int segment);
+namespace detail {
+// The table joints() returns (skeleton.cpp), read inline by parentOf on the per-frame chain walks.
+extern const std::array<JointInfo, kSegmentCount> kJointTable;
+}  // namespace detail
+inline int parentOf(int segment) {
+    return detail::kJointTable[static_cast<std::size_t>(segment)].parent;
+}
 
 // The paper's 17 independent joints (docs/skeleton.md, "The paper's 17 joints on 21 segments"):
 // the rotation from the proximal segment's frame to the distal one's, centred at the origin of

@@ -203,6 +203,53 @@ TEST(JointLimits, RotationNearHalfATurnIsReportedAndClampedToAUnitQuaternion) {
     EXPECT_NEAR(angleBetween(q, fromAxisAngle<double>(Vec3d::UnitY(), 30 * kPi / 180)), 0, 1e-9);
 }
 
+// The excess straight from the rotation vector, as the limits define it.
+double exactExcessDeg(const JointLimits& limits, const Quatd& q) {
+    const Vec3d rvDeg = toRotationVector(q) * (180 / kPi);
+    return (rvDeg - rvDeg.cwiseMax(limits.minDeg).cwiseMin(limits.maxDeg)).norm();
+}
+
+TEST(JointLimits, TheQuickInsideTestAgreesWithTheRotationVectorEverywhere) {
+    // applyJointLimits skips the logarithm when a bound of the rotation vector lies inside the
+    // limits. Random rotations of every size on every joint, and rotations placed on each
+    // limit and 1e-6 deg either side of it: the excess is the exact one, zero exactly when the
+    // rotation vector is inside.
+    std::mt19937 rng(71);
+    std::normal_distribution<double> n(0, 1);
+    std::uniform_real_distribution<double> angle(0, kPi);
+    int inside = 0;
+    int outside = 0;
+    for (const auto& j : joints()) {
+        for (int k = 0; k < 2000; ++k) {
+            const Vec3d axis = Vec3d(n(rng), n(rng), n(rng)).normalized();
+            Quatd q = fromAxisAngle<double>(axis, k % 2 == 0 ? angle(rng) : 0.3 * angle(rng));
+            const double exact = exactExcessDeg(j.limits, q);
+            EXPECT_NEAR(applyJointLimits(j.limits, q, false), exact, 1e-9) << j.name;
+            (exact == 0 ? inside : outside) += 1;
+        }
+        for (int axis = 0; axis < 3; ++axis) {
+            for (double edge : {j.limits.minDeg[axis], j.limits.maxDeg[axis]}) {
+                for (double off : {-1e-6, 0.0, 1e-6}) {
+                    if (std::abs(edge) >= 180) {
+                        continue;
+                    }
+                    Vec3d rvDeg = 0.5 * (j.limits.minDeg + j.limits.maxDeg);
+                    rvDeg[axis] = edge + off;
+                    Quatd q = fromRotationVector<double>(rvDeg * (kPi / 180));
+                    const double exact = exactExcessDeg(j.limits, q);
+                    const double got = applyJointLimits(j.limits, q, false);
+                    EXPECT_NEAR(got, exact, 1e-9) << j.name << ' ' << axis << ' ' << edge;
+                    if (off != 0.0) {  // on the edge itself rounding may put it either side
+                        EXPECT_EQ(got == 0, exact == 0) << j.name << ' ' << axis << ' ' << edge;
+                    }
+                }
+            }
+        }
+    }
+    EXPECT_GT(inside, 1000);  // both paths were taken many times
+    EXPECT_GT(outside, 1000);
+}
+
 TEST(JointLimits, IdentityIsInsideEveryLimit) {
     for (const auto& j : joints()) {
         Quatd q = Quatd::Identity();
