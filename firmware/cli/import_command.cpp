@@ -253,8 +253,8 @@ int runXsensImport(const ImportArgs& a) {
         c.hasMag = true;
         vendorCalibration[name] = c;
     }
-    meta += "\n[calibration]\npath = \"(the vendor's: the files' readings are calibrated)\"\n";
-    meta += fmt::format("text = {}\n", tomlString(formatCalibration(vendorCalibration)));
+    meta += calibrationMetadata("(the vendor's: the files' readings are calibrated)",
+                                formatCalibration(vendorCalibration));
 
     // One time base: the packet counters of an Awinda take count the same packets; a file
     // starting later starts later in the take. The take starts 1 s into the capture clock.

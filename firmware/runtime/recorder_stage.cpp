@@ -183,14 +183,18 @@ std::string recordingMetadata(const board::Board& board, const std::string& boar
                            board::segmentName(board.sensors[i].segment));
     }
     out += "]\n";
-    if (!calibrationText.empty()) {
-        // Applied before the filter: the recording's orientations depend on it, its raw samples
-        // do not.
-        out += "\n[calibration]\n";
-        out += fmt::format("path = {}\n", tomlString(calibrationPath));
-        out += fmt::format("text = {}\n", tomlString(calibrationText));
-    }
+    // Applied before the filter: the recording's orientations depend on it, its raw samples do
+    // not.
+    out += calibrationMetadata(calibrationPath, calibrationText);
     return out;
+}
+
+std::string calibrationMetadata(const std::string& path, const std::string& text) {
+    if (text.empty()) {
+        return {};
+    }
+    return fmt::format("\n[calibration]\npath = {}\ntext = {}\n", tomlString(path),
+                       tomlString(text));
 }
 
 }  // namespace caphub::firmware

@@ -72,6 +72,10 @@ private:
 // A TOML basic string (quoted, with the characters TOML requires escaped), for metadata.
 std::string tomlString(const std::string& s);
 
+// The metadata's [calibration] section: the calibration file applied before the filters, where
+// it came from and its text (empty when the text is).
+std::string calibrationMetadata(const std::string& path, const std::string& text);
+
 // The metadata of a recording: the board file's text and where it came from, the software
 // version and the start time, and the calibration file applied (its path and text; omitted when
 // calibrationText is empty), as TOML.

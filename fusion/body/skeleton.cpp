@@ -63,9 +63,9 @@ const std::array<JointInfo, kSegmentCount> kJointTable = {{
 }};
 }  // namespace detail
 
-namespace {
-
 using detail::kJointTable;
+
+namespace {
 
 // Drillis & Contini (1966) as drawn in Winter, "Biomechanics and Motor Control of Human
 // Movement", fig. 4.1: lengths as fractions of the standing height H.
