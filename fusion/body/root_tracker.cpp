@@ -297,12 +297,15 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
         if (force && dtS > 0 && !isSeat(point_)) {
             // Across, no faster a change of velocity than the pelvis accelerometer measures
             // allows (ContactOptions::contactStepMps): the excess is the held point slipping.
+            // While the pelvis reads free fall the feet carry nothing, whatever touches the
+            // floor: the accelerometer's prediction is taken whole.
             const Vec3d predicted = velocity_ + (*force - Vec3d(0, options_.gravityMps2, 0)) * dtS;
             Vec3d excess = (next - root_) / dtS - predicted;
             excess.y() = 0;
             const double size = excess.norm();
-            if (size > options_.contactStepMps) {
-                const Vec3d slip = excess * ((1 - options_.contactStepMps / size) * dtS);
+            const double bound = force->y() < options_.freeFallMps2 ? 0.0 : options_.contactStepMps;
+            if (size > bound) {
+                const Vec3d slip = excess * ((1 - bound / size) * dtS);
                 next -= slip;
                 anchor_ -= slip;
             }

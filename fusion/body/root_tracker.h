@@ -78,7 +78,8 @@ struct ContactOptions {
     // feet in a push-off moves the root by centimetres in a frame that no force moved the body
     // by. Above the frames' spread where nothing slips (the 99th percentile of walking,
     // turning and sitting at 30-100 poses a second): docs/skeleton.md, "Slips the pelvis did
-    // not feel".
+    // not feel". While the pelvis reads free fall (below freeFallMps2) the bound is zero: the
+    // feet carry nothing then, whatever still touches the floor.
     double contactStepMps = 0.3;
     // A held foot sliding late: its dead reckoning measures a slip for FootInertialOptions::
     // maxSpanS after a still instant; beyond it, while it is still known (maxKnownSpanS), the

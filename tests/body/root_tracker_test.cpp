@@ -426,6 +426,39 @@ TEST(RootTracker, LegsThatJumpInOneFrameDoNotThrowTheRootWhenThePelvisFeltNothin
     }
 }
 
+TEST(RootTracker, WhileThePelvisReadsFreeFallTheFeetDoNotMoveTheRootAcross) {
+    // Standing, then for one frame both legs turn 2 deg sideways at the hips (the feet sliding
+    // apart as they leave the floor at the end of a push-off) while the pelvis reads free fall:
+    // the feet carry nothing, so the root keeps the velocity the accelerometer predicts (here
+    // none) whatever foot point is held. Read at 1 g the same frame moves it by what
+    // contactStepMps lets through.
+    const Dimensions d = dims();
+    auto sideways = [](double a) {
+        Pose p;
+        for (S t : {S::LThigh, S::RThigh}) {
+            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(a, Vec3d::UnitZ()));
+        }
+        return p;
+    };
+    for (const double upMps2 : {1.0, 9.81}) {
+        BodySolver s = makeSolver(d);
+        for (int k = 0; k < 30; ++k) {
+            s.solve(frameOf(sideways(0)), 0.01, Vec3d(0, 9.81, 0));
+        }
+        const Vec3d start = s.pose().positionM[0];
+        s.solve(frameOf(sideways(2 * kDeg)), 0.01, Vec3d(0, upMps2, 0));
+        EXPECT_NE(s.rootTracker().phase(), ContactPhase::Flight);  // one frame: not yet a flight
+        const double acrossM = std::hypot(s.pose().positionM[0].x() - start.x(),
+                                          s.pose().positionM[0].z() - start.z());
+        if (upMps2 < ContactOptions{}.freeFallMps2) {
+            EXPECT_LT(acrossM, 1e-9);
+        } else {
+            EXPECT_GT(acrossM, 0.5 * ContactOptions{}.contactStepMps * 0.01);
+            EXPECT_LE(acrossM, ContactOptions{}.contactStepMps * 0.01 + 1e-9);
+        }
+    }
+}
+
 TEST(RootTracker, ACrouchOverTheFeetIsNotASeat) {
     // Both thighs as far from the vertical as sitting, but the centre of mass over the feet: a
     // squat is carried by the feet, whose lowest point stays on the floor all the way down and
