@@ -383,6 +383,18 @@ TEST(RootTracker, ABounceOnTheSeatIsNotAFlight) {
     EXPECT_LT((s.pose().positionM[0] - seated).norm(), 1e-9);
 }
 
+// Both legs turned sideways at the hips by a (rad), the feet turned back level.
+Pose legsTurnedSideways(double a) {
+    Pose p;
+    for (S t : {S::LThigh, S::RThigh}) {
+        p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(a, Vec3d::UnitZ()));
+    }
+    for (S f : {S::LHindfoot, S::RHindfoot}) {
+        p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitZ()));
+    }
+    return p;
+}
+
 TEST(RootTracker, LegsThatJumpInOneFrameDoNotThrowTheRootWhenThePelvisFeltNothing) {
     // Standing; for one frame both legs turn 5 deg sideways at the hips (as a gyroscope that
     // clipped, or a capture that flips a leg, makes them), then back. Held on a foot point the
@@ -390,16 +402,7 @@ TEST(RootTracker, LegsThatJumpInOneFrameDoNotThrowTheRootWhenThePelvisFeltNothin
     // nothing else, so the root moves by no more than contactStepMps allows in a frame, and
     // stays near where it stood. Without the accelerometer it follows the contacts as before.
     const Dimensions d = dims();
-    auto sideways = [](double a) {
-        Pose p;
-        for (S t : {S::LThigh, S::RThigh}) {
-            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(a, Vec3d::UnitZ()));
-        }
-        for (S f : {S::LHindfoot, S::RHindfoot}) {
-            p.qLocal[idx(f)] = Quatd(Eigen::AngleAxisd(-a, Vec3d::UnitZ()));
-        }
-        return p;
-    };
+    const auto sideways = legsTurnedSideways;
     const Vec3d oneG(0, 9.81, 0);
     for (const bool felt : {true, false}) {
         BodySolver s = makeSolver(d);
@@ -433,13 +436,7 @@ TEST(RootTracker, WhileThePelvisReadsFreeFallTheFeetDoNotMoveTheRootAcross) {
     // none) whatever foot point is held. Read at 1 g the same frame moves it by what
     // contactStepMps lets through.
     const Dimensions d = dims();
-    auto sideways = [](double a) {
-        Pose p;
-        for (S t : {S::LThigh, S::RThigh}) {
-            p.qLocal[idx(t)] = Quatd(Eigen::AngleAxisd(a, Vec3d::UnitZ()));
-        }
-        return p;
-    };
+    const auto sideways = legsTurnedSideways;
     for (const double upMps2 : {1.0, 9.81}) {
         BodySolver s = makeSolver(d);
         for (int k = 0; k < 30; ++k) {
