@@ -303,7 +303,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             Vec3d excess = (next - root_) / dtS - predicted;
             excess.y() = 0;
             const double size = excess.norm();
-            const double bound = force->y() < options_.freeFallMps2 ? 0.0 : options_.contactStepMps;
+            const double bound = freeFallCount_ > 0 ? 0.0 : options_.contactStepMps;
             if (size > bound) {
                 const Vec3d slip = excess * ((1 - bound / size) * dtS);
                 next -= slip;

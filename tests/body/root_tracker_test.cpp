@@ -402,20 +402,19 @@ TEST(RootTracker, LegsThatJumpInOneFrameDoNotThrowTheRootWhenThePelvisFeltNothin
     // nothing else, so the root moves by no more than contactStepMps allows in a frame, and
     // stays near where it stood. Without the accelerometer it follows the contacts as before.
     const Dimensions d = dims();
-    const auto sideways = legsTurnedSideways;
     const Vec3d oneG(0, 9.81, 0);
     for (const bool felt : {true, false}) {
         BodySolver s = makeSolver(d);
         const std::optional<Vec3d> force = felt ? std::optional<Vec3d>(oneG) : std::nullopt;
         for (int k = 0; k < 30; ++k) {
-            s.solve(frameOf(sideways(0)), 0.01, force);
+            s.solve(frameOf(legsTurnedSideways(0)), 0.01, force);
         }
         const Vec3d start = s.pose().positionM[0];
-        s.solve(frameOf(sideways(5 * kDeg)), 0.01, force);
+        s.solve(frameOf(legsTurnedSideways(5 * kDeg)), 0.01, force);
         const double jumpM = std::hypot(s.pose().positionM[0].x() - start.x(),
                                         s.pose().positionM[0].z() - start.z());
         for (int k = 0; k < 30; ++k) {
-            s.solve(frameOf(sideways(0)), 0.01, force);
+            s.solve(frameOf(legsTurnedSideways(0)), 0.01, force);
         }
         const double afterM = std::hypot(s.pose().positionM[0].x() - start.x(),
                                          s.pose().positionM[0].z() - start.z());
@@ -436,14 +435,13 @@ TEST(RootTracker, WhileThePelvisReadsFreeFallTheFeetDoNotMoveTheRootAcross) {
     // none) whatever foot point is held. Read at 1 g the same frame moves it by what
     // contactStepMps lets through.
     const Dimensions d = dims();
-    const auto sideways = legsTurnedSideways;
     for (const double upMps2 : {1.0, 9.81}) {
         BodySolver s = makeSolver(d);
         for (int k = 0; k < 30; ++k) {
-            s.solve(frameOf(sideways(0)), 0.01, Vec3d(0, 9.81, 0));
+            s.solve(frameOf(legsTurnedSideways(0)), 0.01, Vec3d(0, 9.81, 0));
         }
         const Vec3d start = s.pose().positionM[0];
-        s.solve(frameOf(sideways(2 * kDeg)), 0.01, Vec3d(0, upMps2, 0));
+        s.solve(frameOf(legsTurnedSideways(2 * kDeg)), 0.01, Vec3d(0, upMps2, 0));
         EXPECT_NE(s.rootTracker().phase(), ContactPhase::Flight);  // one frame: not yet a flight
         const double acrossM = std::hypot(s.pose().positionM[0].x() - start.x(),
                                           s.pose().positionM[0].z() - start.z());
