@@ -315,6 +315,37 @@ fusion::HardIronEstimate FusionStage::magEstimate(int sensor) const {
     return onlineMag_[static_cast<std::size_t>(sensor)]->estimator.estimate();
 }
 
+std::optional<FusionStage::MagLearning> FusionStage::magLearning(int sensor) const {
+    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
+        !onlineMag_[static_cast<std::size_t>(sensor)] ||
+        onlineMag_[static_cast<std::size_t>(sensor)]->mode != MagMode::Estimating) {
+        return std::nullopt;
+    }
+    const OnlineMag& o = *onlineMag_[static_cast<std::size_t>(sensor)];
+    const fusion::OnlineHardIronParams& p = o.estimator.params();
+    const fusion::HardIronEstimate e = o.estimator.estimate();  // now, not the latest solve's
+    MagLearning m;
+    m.readingsS = o.estimator.readingsS();
+    m.neededS = p.minWeightS;
+    m.spread = e.spread;
+    m.neededSpread = p.minSpread;
+    m.residualPct = e.residualPct;
+    m.maxResidualPct = p.maxResidualPct;
+    m.fieldUt = e.fieldNormUt;
+    m.solved = e.valid;
+    m.measuring = o.aligning;
+    if (o.aligning) {
+        m.waitingFor = "the heading measured";
+    } else if (m.readingsS < m.neededS) {
+        m.waitingFor = "readings";
+    } else if (!e.valid || e.spread < p.minSpread) {  // one direction alone: no solution at all
+        m.waitingFor = "turns";
+    } else {
+        m.waitingFor = "a steadier field";  // residual or field size out of bounds
+    }
+    return m;
+}
+
 std::optional<fusion::OnlineHardIronState> FusionStage::magEstimatorState(int sensor) const {
     if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
         !onlineMag_[static_cast<std::size_t>(sensor)]) {

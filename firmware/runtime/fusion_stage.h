@@ -106,6 +106,25 @@ public:
     const HeadingStep& headingStep(int sensor) const;
     // Readings averaged for a step (about 2 s of the magnetometer's).
     std::uint32_t alignReadings(int sensor) const;
+    // How far a gyroscope-only heading (mode Estimating) has come towards its step, for a person
+    // who must move before a body calibration (the status document, the page): the online
+    // estimate's readings against the seconds it needs, its spread against the spread it needs,
+    // its residual and field; `measuring` once the estimate is good and the heading error is
+    // being averaged. None for a sensor in any other mode.
+    struct MagLearning {
+        double readingsS = 0;
+        double neededS = 0;
+        double spread = 0;
+        double neededSpread = 0;
+        double residualPct = 0;
+        double maxResidualPct = 0;
+        double fieldUt = 0;
+        bool solved = false;     // the readings gave an estimate (its figures below are set)
+        bool measuring = false;  // good: the heading error is being averaged for the step
+        // What it waits for: "readings", "turns", "a steadier field" or "the heading measured".
+        const char* waitingFor = "readings";
+    };
+    std::optional<MagLearning> magLearning(int sensor) const;
 
 private:
     struct OnlineMag {

@@ -114,6 +114,7 @@ StatusSnapshot StatusStage::snapshot(Timestamp now, bool running) const {
             o.events = events_[i];
             if (fusion_ != nullptr) {
                 o.heading = key(fusion_->magMode(static_cast<int>(i)));
+                o.headingLearning = fusion_->magLearning(static_cast<int>(i));
             }
             s.sensors.push_back(std::move(o));
         }
@@ -168,6 +169,21 @@ std::string statusJson(const StatusSnapshot& s) {
         j["events"] = o.events;
         if (!o.heading.empty()) {
             j["heading"] = o.heading;
+        }
+        if (const auto& l = o.headingLearning) {
+            // docs/serve.md: what a gyroscope-only heading waits for before its step.
+            nlohmann::ordered_json h;
+            h["waiting_for"] = l->waitingFor;
+            h["readings_s"] = l->readingsS;
+            h["needed_s"] = l->neededS;
+            if (l->solved) {
+                h["spread"] = l->spread;
+                h["needed_spread"] = l->neededSpread;
+                h["residual_pct"] = l->residualPct;
+                h["max_residual_pct"] = l->maxResidualPct;
+                h["field_ut"] = l->fieldUt;
+            }
+            j["heading_learning"] = h;
         }
         sensors.push_back(j);
     }

@@ -35,6 +35,8 @@ struct StatusSnapshot {
         std::uint64_t events = 0;
         // Where its heading comes from (key(MagMode)); empty: no fusion in this capture.
         std::string heading;
+        // A gyroscope-only heading: how far its online estimate has come.
+        std::optional<FusionStage::MagLearning> headingLearning;
     };
     struct Bus {
         std::string name;

@@ -140,6 +140,9 @@ public:
     // (false) and the estimator starts empty.
     bool setState(const OnlineHardIronState& s);
     const OnlineHardIronParams& params() const { return params_; }
+    // The readings taken so far as seconds of the magnetometer's rate, weighted by the
+    // forgetting: what minWeightS is compared with.
+    double readingsS() const { return state_.weight() / magRateHz_; }
 
 private:
     // The alignment R of a good estimate with a fitted soft iron, from the alignment's sums.

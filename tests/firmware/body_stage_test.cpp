@@ -14,6 +14,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -204,10 +205,11 @@ TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMa
     s.sensor = sensor;
     Timestamp t{1s};
     EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Estimating);  // until told otherwise
+    double clockS = 0;  // the motion's own time: a run goes on where the last one ended
     const auto run = [&](double seconds, bool turning) {
         const int n = static_cast<int>(seconds * odr);
         for (int i = 0; i < n; ++i) {
-            const double tau = static_cast<double>(i) * dt;
+            const double tau = clockS + static_cast<double>(i) * dt;
             // A tumble about an axis that wanders over the sphere (sensor frame).
             const Eigen::Vector3d w =
                 turning ? Eigen::Vector3d(1.2 * std::cos(0.31 * tau), 1.2 * std::sin(0.31 * tau),
@@ -225,11 +227,35 @@ TEST(FusionStage, EstimatesAnUncalibratedMagnetometersOffsetOnlineAndReturnsToMa
             t += periodFromHz(odr);
             fusion.onSample(s);
         }
+        clockS += static_cast<double>(n) * dt;
     };
     run(3.0, false);
     EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Estimating);
-    run(240.0, true);
+    // What the heading waits for (the status and the page say it): first readings, ...
+    auto learning = fusion.magLearning(sensor);
+    ASSERT_TRUE(learning.has_value());
+    EXPECT_STREQ(learning->waitingFor, "readings");
+    EXPECT_NEAR(learning->readingsS, 3.0, 0.2);
+    EXPECT_EQ(learning->neededS, 10.0);
+    // ... then, still for longer than the readings it needs, turns: the field has taken one
+    // direction in the sensor frame.
+    run(9.0, false);
+    learning = fusion.magLearning(sensor);
+    ASSERT_TRUE(learning.has_value());
+    EXPECT_STREQ(learning->waitingFor, "turns");
+    EXPECT_LT(learning->spread, learning->neededSpread);
+    // Tumbling, it is good and its heading measured before it turns magnetic.
+    bool measured = false;
+    for (int k = 0; k < 240 && fusion.magMode(sensor) == firmware::MagMode::Estimating; ++k) {
+        run(1.0, true);
+        learning = fusion.magLearning(sensor);
+        measured = measured || (learning && learning->measuring &&
+                                std::string_view(learning->waitingFor) == "the heading measured");
+    }
+    EXPECT_TRUE(measured);
+    run(120.0, true);
     EXPECT_EQ(fusion.magMode(sensor), firmware::MagMode::Online);
+    EXPECT_FALSE(fusion.magLearning(sensor).has_value());  // only a gyroscope-only heading learns
     const fusion::HardIronEstimate e = fusion.magEstimate(sensor);
     EXPECT_TRUE(e.good);
     EXPECT_LT((e.offsetUt - offset).norm(), 2.0);

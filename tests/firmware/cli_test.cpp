@@ -139,6 +139,19 @@ TEST(Cli, StatusShowsTheLastCapturesStateAsJson) {
         EXPECT_THAT((*it)[1].str(), AnyOf("uncorrected", "gyro-only", "online-hard-iron"));
     }
     EXPECT_EQ(headings, 10);
+    const auto count = [&](const std::string& what) {
+        std::size_t n = 0;
+        for (auto at = r.output.find(what); at != std::string::npos;
+             at = r.output.find(what, at + 1)) {
+            ++n;
+        }
+        return n;
+    };
+    // Each gyro-only one (the virtual suit's chips have offsets of up to 300 uT: most of them)
+    // says what its online estimate waits for (docs/serve.md).
+    EXPECT_GT(count("\"heading\": \"gyro-only\""), 0U);
+    EXPECT_EQ(count("\"waiting_for\": \""), count("\"heading\": \"gyro-only\""));
+    EXPECT_EQ(count("\"needed_s\": 10.0"), count("\"heading\": \"gyro-only\""));
     // A file named that is not there is a file given that cannot be used (2); no status where
     // the hub keeps it by default is the answer "no hub" (1, tests/firmware/file_faults_cli_test).
     const CliRun none = caphub("status --file " + dir + "/absent.json");
