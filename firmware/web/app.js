@@ -100,17 +100,46 @@ function bytes(n) {
 
 let lastTake = null;
 
+// A gyroscope-only heading: what its online hard-iron estimate waits for (docs/serve.md).
+function headingDetail(l) {
+  if (l.waiting_for === 'readings') {
+    const got = Math.floor(l.readings_s);
+    return got < l.needed_s ? `learning, ${got} of ${fmt(l.needed_s, 0)} s`
+      : 'learning, solving';  // solved about once a second
+  }
+  if (l.waiting_for === 'turns') {
+    return l.spread === undefined ? 'turn it' : `turn it (spread ${fmt(l.spread, 3)} of ${fmt(l.needed_spread, 3)})`;
+  }
+  if (l.waiting_for === 'a steadier field') return `field unsteady (residual ${fmt(l.residual_pct)} %)`;
+  return 'measuring its heading';
+}
+
+// The heading cell: the mode, and for a gyro-only one what it waits for (hidden at phone width,
+// where the body calibration card says what to do).
+function headingCell(x) {
+  const td = document.createElement('td');
+  td.textContent = x.heading ?? '';
+  if (x.heading && x.heading_learning) {
+    const detail = document.createElement('span');
+    detail.className = 'detail';
+    detail.textContent = `: ${headingDetail(x.heading_learning)}`;
+    td.appendChild(detail);
+  }
+  return td;
+}
+
 function showState(s) {
   state = s;
   const rows = s.sensors.map((x) => {
     const tr = document.createElement('tr');
     if (!x.online) tr.className = 'off';
     for (const v of [x.name, x.segment, fmt(x.rate_hz), x.lost, x.read_errors,
-                     x.gyro_clip_events ?? 0, x.heading ?? '']) {
+                     x.gyro_clip_events ?? 0]) {
       const td = document.createElement('td');
       td.textContent = v;
       tr.appendChild(td);
     }
+    tr.appendChild(headingCell(x));
     return tr;
   });
   $('sensors').tBodies[0].replaceChildren(...rows);
@@ -148,6 +177,16 @@ function showState(s) {
     text = `calibration failed: ${req.message}`;
   }
   $('cal-status').textContent = text;
+  // Sensors with no magnetic heading yet: a body calibration cannot tell how their straps are
+  // turned about the vertical until the online estimate has measured their headings (then it
+  // is re-expressed for each: docs/body-calibration.md, "Free headings").
+  const free = s.sensors.filter((x) => x.online && x.heading === 'gyro-only').map((x) => x.name);
+  $('cal-heading-hint').textContent = free.length === 0 ? ''
+    : `${free.length} sensor${free.length > 1 ? 's have' : ' has'} no magnetic heading yet (${free.join(', ')}): `
+      + 'until the online estimate measures their headings, a body calibration cannot tell how '
+      + 'their straps are turned about the vertical (it is corrected for each once measured). '
+      + 'Move about and turn each limb through different directions until the sensor table reads '
+      + 'online-hard-iron, or calibrate the magnetometers (Sensor calibration, step 3).';
   const hr = b.heading_reset || {};
   $('heading-status').textContent =
     hr.state === 'pending' ? 'heading reset: waiting for the capture to reach it'

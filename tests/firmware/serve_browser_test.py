@@ -177,6 +177,24 @@ def main():
         print(f"3D view ({renderer}): {drawn1} and {drawn2} drawn pixels; the two screenshots "
               "differ", flush=True)
 
+        # Sensors whose heading is gyro-only (no magnetometer calibration in this state folder):
+        # the body calibration card names them, and the sensor table says what each waits for.
+        # Read in one script so that the state and the page are of the same update.
+        names, hint, cells = driver.execute_script(
+            "return [state.sensors.filter((x) => x.online && x.heading === 'gyro-only')"
+            ".map((x) => x.name), document.getElementById('cal-heading-hint').textContent,"
+            " [...document.querySelectorAll('#sensors tbody tr')].map((r) => r.cells[6].textContent)];")
+        if not names:
+            fail("no sensor is gyro-only on a virtual suit without magnetometer calibration")
+        if not hint.startswith(f"{len(names)} sensor") or any(n not in hint for n in names):
+            fail(f"the calibration card's hint does not name the {len(names)} gyro-only sensors "
+                 f"{names}: {hint!r}")
+        waiting = [c for c in cells if c.startswith("gyro-only: ")]
+        if len(waiting) != len(names):
+            fail(f"the sensor table says what {len(waiting)} gyro-only headings wait for, "
+                 f"not {len(names)}: {cells}")
+        print(f"gyro-only headings named on the page: {len(names)}; e.g. {waiting[0]!r}", flush=True)
+
         # A heading reset from the page: the page says how it ended (done, or failed and why).
         driver.find_element(By.ID, "heading-reset").click()
         heading = driver.find_element(By.ID, "heading-status")
