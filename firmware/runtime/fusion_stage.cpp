@@ -277,12 +277,17 @@ const FusionStage::HeadingStep& FusionStage::headingStep(int sensor) const {
     return headingSteps_[static_cast<std::size_t>(sensor)];
 }
 
-std::uint32_t FusionStage::alignReadings(int sensor) const {
+const FusionStage::OnlineMag* FusionStage::onlineMagOf(int sensor) const {
     if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
         !onlineMag_[static_cast<std::size_t>(sensor)]) {
-        return 0;
+        return nullptr;
     }
-    return onlineMag_[static_cast<std::size_t>(sensor)]->alignEvery;
+    return &*onlineMag_[static_cast<std::size_t>(sensor)];
+}
+
+std::uint32_t FusionStage::alignReadings(int sensor) const {
+    const OnlineMag* o = onlineMagOf(sensor);
+    return o != nullptr ? o->alignEvery : 0;
 }
 
 const char* key(MagMode m) {
@@ -300,28 +305,21 @@ const char* key(MagMode m) {
 }
 
 MagMode FusionStage::magMode(int sensor) const {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
-        !onlineMag_[static_cast<std::size_t>(sensor)]) {
-        return MagMode::Calibrated;
-    }
-    return onlineMag_[static_cast<std::size_t>(sensor)]->mode;
+    const OnlineMag* o = onlineMagOf(sensor);
+    return o != nullptr ? o->mode : MagMode::Calibrated;
 }
 
 fusion::HardIronEstimate FusionStage::magEstimate(int sensor) const {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
-        !onlineMag_[static_cast<std::size_t>(sensor)]) {
-        return {};
-    }
-    return onlineMag_[static_cast<std::size_t>(sensor)]->estimator.estimate();
+    const OnlineMag* o = onlineMagOf(sensor);
+    return o != nullptr ? o->estimator.estimate() : fusion::HardIronEstimate{};
 }
 
 std::optional<FusionStage::MagLearning> FusionStage::magLearning(int sensor) const {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
-        !onlineMag_[static_cast<std::size_t>(sensor)] ||
-        onlineMag_[static_cast<std::size_t>(sensor)]->mode != MagMode::Estimating) {
+    const OnlineMag* found = onlineMagOf(sensor);
+    if (found == nullptr || found->mode != MagMode::Estimating) {
         return std::nullopt;
     }
-    const OnlineMag& o = *onlineMag_[static_cast<std::size_t>(sensor)];
+    const OnlineMag& o = *found;
     const fusion::OnlineHardIronParams& p = o.estimator.params();
     const fusion::HardIronEstimate e = o.estimator.estimate();  // now, not the latest solve's
     MagLearning m;
@@ -347,21 +345,17 @@ std::optional<FusionStage::MagLearning> FusionStage::magLearning(int sensor) con
 }
 
 std::optional<fusion::OnlineHardIronState> FusionStage::magEstimatorState(int sensor) const {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
-        !onlineMag_[static_cast<std::size_t>(sensor)]) {
-        return std::nullopt;
-    }
-    return onlineMag_[static_cast<std::size_t>(sensor)]->estimator.state();
+    const OnlineMag* o = onlineMagOf(sensor);
+    return o != nullptr ? std::optional(o->estimator.state()) : std::nullopt;
 }
 
 bool FusionStage::setMagEstimatorState(int sensor, const fusion::OnlineHardIronState& state) {
-    if (sensor < 0 || static_cast<std::size_t>(sensor) >= onlineMag_.size() ||
-        !onlineMag_[static_cast<std::size_t>(sensor)]) {
+    OnlineMag* o = onlineMagOf(sensor);
+    if (o == nullptr) {
         return false;
     }
-    auto& o = *onlineMag_[static_cast<std::size_t>(sensor)];
-    o.decided = false;
-    return o.estimator.setState(state);
+    o->decided = false;
+    return o->estimator.setState(state);
 }
 
 std::uint32_t FusionStage::resets(int sensor) const {

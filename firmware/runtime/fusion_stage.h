@@ -142,6 +142,12 @@ private:
         std::uint32_t alignCount = 0;
         std::uint32_t alignEvery = 1;  // readings averaged (about 2 s)
     };
+    // The sensor's online estimator, null for no such sensor or one whose magnetometer the
+    // calibration file corrects.
+    const OnlineMag* onlineMagOf(int sensor) const;
+    OnlineMag* onlineMagOf(int sensor) {
+        return const_cast<OnlineMag*>(std::as_const(*this).onlineMagOf(sensor));
+    }
     // Feeds a calibrated (or raw) field reading to the sensor's filter as its mode says.
     void magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt, Timestamp t);
     // While aligning: one reading (less the offset) into the heading error's average; at its
