@@ -1,5 +1,6 @@
 #include "firmware/runtime/fusion_stage.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace caphub::firmware {
@@ -18,6 +19,24 @@ const char* toString(MagMode m) {
     return "?";
 }
 
+namespace {
+
+// The sensors with a magnetometer that the calibrations do not correct: the first readings
+// FieldVote waits for.
+std::size_t rawSensors(const board::Board& board, const FusionStage::Calibrations& calibrations) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < board.sensors.size(); ++i) {
+        const auto* chip = board.sensors[i].chip;
+        const bool hasMag = chip != nullptr && !chip->magOdrsHz.empty();
+        const bool corrected =
+            i < calibrations.size() && calibrations[i] && calibrations[i]->hasMag;
+        n += hasMag && !corrected ? 1 : 0;
+    }
+    return n;
+}
+
+}  // namespace
+
 FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibrations calibrations)
     : latest_(board.sensors.size()),
       valid_(board.sensors.size(), false),
@@ -25,6 +44,7 @@ FusionStage::FusionStage(const board::Board& board, RecordSink* records, Calibra
       resets_(board.sensors.size(), 0),
       calibrations_(std::move(calibrations)),
       headingSteps_(board.sensors.size()),
+      firstFields_(board.sensors.size(), rawSensors(board, calibrations_)),
       records_(records) {
     calibrations_.resize(board.sensors.size());
     onlineMag_.resize(board.sensors.size());
@@ -144,15 +164,7 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         return;
     }
     if (!o.decided) {
-        // The first reading: a field of the earth's size (22-67 uT anywhere on earth) is taken
-        // as it is, as before this estimator existed; anything else is a chip offset or hard
-        // iron, and the heading is the gyroscope's until the estimate is good (or a saved one
-        // is good already).
-        o.estimate = o.estimator.refresh();
-        const double n = magUt.norm();
-        o.mode = o.estimate.good ? MagMode::Online
-                                 : (n >= 22.0 && n <= 67.0 ? MagMode::Raw : MagMode::Estimating);
-        o.decided = true;
+        decideMode(sensor, o, f, magUt, t);
     }
     o.estimator.add(magUt);
     if (f.state().inclinationInit && o.estimator.learnsAlignment()) {
@@ -206,6 +218,36 @@ void FusionStage::magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d
         case MagMode::Estimating:
         case MagMode::Calibrated:
             return;
+    }
+}
+
+void FusionStage::decideMode(std::size_t sensor, OnlineMag& o, const Filter& f,
+                             const Eigen::Vector3d& magUt, Timestamp t) {
+    // A saved estimate that is good already: magnetic from the start.
+    o.estimate = o.estimator.refresh();
+    if (o.estimate.good) {
+        o.mode = MagMode::Online;
+        o.decided = true;
+        return;
+    }
+    // Otherwise the heading is the gyroscope's (mode Estimating) until the suit's first readings
+    // have voted: a raw reading that agrees with the others' field is taken as it is (Raw),
+    // anything else is a chip offset or hard iron, and stays gyroscope-only until the estimate is
+    // good (fusion::FieldVote).
+    const double tS = toSeconds(t.time_since_epoch());
+    if (f.state().inclinationInit) {
+        const auto q = f.quat();
+        const Eigen::Vector3d up = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().conjugate() *
+                                   Eigen::Vector3d::UnitZ();
+        const double n = magUt.norm();
+        if (n > 0) {
+            firstFields_.add(sensor, n, std::acos(std::clamp(magUt.dot(up) / n, -1.0, 1.0)), tS);
+        }
+    }
+    firstFields_.close(tS);
+    if (const std::optional<bool> trusted = firstFields_.trusted(sensor)) {
+        o.mode = *trusted ? MagMode::Raw : MagMode::Estimating;
+        o.decided = true;
     }
 }
 

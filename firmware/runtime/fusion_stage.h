@@ -15,6 +15,7 @@
 #include "board/board.h"
 #include "firmware/runtime/capture.h"
 #include "firmware/runtime/record_sink.h"
+#include "fusion/calibration/field_vote.h"
 #include "fusion/calibration/online_hard_iron.h"
 #include "fusion/calibration/sensor_calibration.h"
 #include "fusion/orientation_filter.h"
@@ -24,7 +25,8 @@ namespace caphub::firmware {
 // Where a sensor's heading comes from (docs/fusion.md, "No magnetometer calibration").
 enum class MagMode {
     Calibrated,  // the calibration file corrects the magnetometer: magnetic heading
-    Raw,         // no correction, but the raw field looked like the earth's: magnetic heading
+    Raw,         // no correction, but the raw field agreed with the suit's (fusion::FieldVote):
+                 // magnetic heading
     Estimating,  // the field cannot be trusted yet (or any more): gyroscope-only heading while
                  // the online hard-iron estimate gathers turns
     Online,      // magnetic heading with the online hard-iron estimate subtracted
@@ -132,7 +134,7 @@ private:
         fusion::OnlineHardIron estimator;
         fusion::HardIronEstimate estimate;
         MagMode mode = MagMode::Estimating;
-        bool decided = false;          // the first reading chose Raw or Estimating
+        bool decided = false;          // the first readings chose Raw or Estimating
         std::uint32_t sinceSolve = 0;  // readings since the last estimate()
         std::uint32_t solveEvery = 1;  // readings per estimate() (about 1 s)
         // Estimating with a good estimate: the heading error being averaged before the step.
@@ -152,6 +154,10 @@ private:
     void magUpdate(std::size_t sensor, Filter& f, const Eigen::Vector3d& magUt, Timestamp t);
     // While aligning: one reading (less the offset) into the heading error's average; at its
     // end the step and the switch to Online.
+    // Before a sensor's mode is decided: a saved good estimate, or the suit's vote on its first
+    // reading (Raw or Estimating); gyroscope-only until the vote is counted.
+    void decideMode(std::size_t sensor, OnlineMag& o, const Filter& f, const Eigen::Vector3d& magUt,
+                    Timestamp t);
     void alignHeading(std::size_t sensor, OnlineMag& o, Filter& f, const Eigen::Vector3d& magUt,
                       Timestamp t);
 
@@ -163,6 +169,8 @@ private:
     Calibrations calibrations_;
     std::vector<std::optional<OnlineMag>> onlineMag_;  // sensors without a magnetometer calibration
     std::vector<HeadingStep> headingSteps_;
+    // The first raw readings of the suit, to tell a raw field that can be taken as it is.
+    fusion::FieldVote firstFields_;
     fusion::Vec3<float> bodyAccEnu_{};
     RecordSink* records_;
     OrientationOverride override_;

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -185,6 +186,88 @@ double magOdrOf(const board::SensorConfig& c) {
 // Every how many accelerometer/gyroscope samples the sensor's magnetometer reads one.
 int magEveryOf(const board::SensorConfig& c) {
     return std::max(1, static_cast<int>(std::lround(c.achievedOdrHz / magOdrOf(c))));
+}
+
+// Still sensors of a suit without a magnetometer calibration, each in an orientation of its
+// own, fed from startS for seconds: sensor i's chip adds offsets[i] (uT, sensor frame) to the
+// earth's field. Only the first `sensors` sensors are fed (all: every one).
+void feedStillSuit(firmware::FusionStage& fusion, const board::Board& b,
+                   const std::vector<Eigen::Vector3d>& offsets, double startS, double seconds,
+                   std::size_t sensors = std::numeric_limits<std::size_t>::max()) {
+    const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));  // ENU
+    const double odr = b.sensors[0].achievedOdrHz;
+    for (int k = 0; k < static_cast<int>(seconds * odr); ++k) {
+        for (std::size_t i = 0; i < std::min(sensors, b.sensors.size()); ++i) {
+            const Quatd q(Eigen::AngleAxisd(
+                0.4 * static_cast<double>(i),
+                Eigen::Vector3d(1.0, 0.5, 0.2 * static_cast<double>(i)).normalized()));
+            firmware::SensorSample s;
+            s.sensor = static_cast<int>(i);
+            s.sample.t = Timestamp{durationFromSeconds(startS)} + periodFromHz(odr) * k;
+            s.sample.accMps2 = (q.conjugate() * Eigen::Vector3d(0, 0, 9.81)).cast<float>();
+            s.sample.magUt = (q.conjugate() * field + offsets[i]).cast<float>();
+            s.sample.flags = k % magEveryOf(b.sensors[i]) == 0 ? hal::ImuSample::kMagFresh : 0;
+            fusion.onSample(s);
+        }
+    }
+}
+
+// A raw field is taken as it is only when the suit's first readings agree on the earth's field
+// (fusion::FieldVote), and every heading is the gyroscope's until they have voted. With the
+// same field everywhere (offsets of 0-2 uT) every sensor is read raw; one sensor whose 20 uT
+// offset gives a field of the earth's size and magnitude (54 uT, 8 % more) but 22 deg nearer
+// the vertical is not; with large offsets everywhere none is.
+TEST(FusionStage, ReadsAMagnetometerRawOnlyWhenTheSuitsFirstFieldsAgree) {
+    const board::Board b = *board::loadBoardFile(kSource / "board" / "sim-suit.toml").board;
+    const std::size_t n = b.sensors.size();
+    std::vector<Eigen::Vector3d> small(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        small[i] = Eigen::Vector3d(0.3, -0.2, 0.1) * static_cast<double>(i % 5);
+    }
+    const auto modes = [&](const firmware::FusionStage& fusion) {
+        std::string m;
+        for (std::size_t i = 0; i < n; ++i) {
+            m += fusion.magMode(static_cast<int>(i)) == firmware::MagMode::Raw ? 'R' : 'g';
+        }
+        return m;
+    };
+    {
+        firmware::FusionStage fusion(b, nullptr);
+        // Ten sensors in, for less than the vote's window: it waits for the other seven.
+        feedStillSuit(fusion, b, small, 1.0, 0.3, 10);
+        EXPECT_EQ(modes(fusion), std::string(n, 'g')) << "before the vote";
+        EXPECT_TRUE(fusion.headingFree(0));
+        feedStillSuit(fusion, b, small, 1.3, 1.0);
+        EXPECT_EQ(modes(fusion), std::string(n, 'R'));
+    }
+    {
+        // Sensor 2 (turned 0.8 rad about its axis in feedStillSuit): its offset is across the
+        // earth's field in its frame, towards its up.
+        const Eigen::Vector3d field(0.0, 50.0 * std::cos(1.05), -50.0 * std::sin(1.05));
+        const Quatd q2(Eigen::AngleAxisd(0.8, Eigen::Vector3d(1.0, 0.5, 0.4).normalized()));
+        const Eigen::Vector3d f2 = q2.conjugate() * field;
+        const Eigen::Vector3d up2 = q2.conjugate() * Eigen::Vector3d::UnitZ();
+        std::vector<Eigen::Vector3d> offsets = small;
+        offsets[2] = (up2 - up2.dot(f2) / f2.squaredNorm() * f2).normalized() * 20.0;
+        const Eigen::Vector3d m2 = f2 + offsets[2];
+        ASSERT_NEAR(m2.norm(), 53.85, 0.01);
+        ASSERT_NEAR(std::acos(f2.dot(up2) / 50.0) - std::acos(m2.dot(up2) / m2.norm()),
+                    std::atan(0.4), 1e-9);
+        firmware::FusionStage fusion(b, nullptr);
+        feedStillSuit(fusion, b, offsets, 1.0, 1.0);
+        std::string expected(n, 'R');
+        expected[2] = 'g';
+        EXPECT_EQ(modes(fusion), expected);
+    }
+    {
+        std::vector<Eigen::Vector3d> large(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            large[i] = Eigen::Vector3d(120.0 - 15.0 * static_cast<double>(i), -80.0, 40.0);
+        }
+        firmware::FusionStage fusion(b, nullptr);
+        feedStillSuit(fusion, b, large, 1.0, 1.0);
+        EXPECT_EQ(modes(fusion), std::string(n, 'g'));
+    }
 }
 
 // A sensor without a magnetometer calibration whose chip reads a 200 uT offset: its first field
