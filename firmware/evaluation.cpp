@@ -181,6 +181,11 @@ private:
     bs::SegmentState segment_;
 };
 
+// A sensor whose free heading its joints turned (EvaluateResult::jointHeadingTurnDeg).
+bool fromJoints(const EvaluateResult& r, std::size_t sensor) {
+    return sensor < r.jointHeadingTurnDeg.size() && r.jointHeadingTurnDeg[sensor] != 0;
+}
+
 }  // namespace
 
 MountingErrors mountingErrors(
@@ -220,6 +225,7 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
     bodyOptions.aidFilters = o.aidFilters;
     bodyOptions.footInertial = o.footInertial;
     bodyOptions.kneeHeading = o.kneeHeading;
+    bodyOptions.jointHeading = o.jointHeading;
 
     // The subject holds the calibration pose (the T-pose without one) from the start as long as
     // `caphub run` asks for it (the averaging window and a margin), then blends into the clip. The
@@ -316,6 +322,9 @@ Result<EvaluateResult> evaluateClip(const board::Board& b, const EvaluateOptions
         r.headingSteps.push_back(
             {step.count, toSeconds(step.t - start), step.angleRad * 180.0 / hal::kPi});
     }
+    for (const double turn : bodyStage.tracker().jointHeadingTurns()) {
+        r.jointHeadingTurnDeg.push_back(turn * 180.0 / hal::kPi);
+    }
     const MountingErrors m = mountingErrors(bodyStage.calibration(), b, clip->placement);
     r.mountingErrorMeanDeg = m.meanDeg;
     r.mountingErrorMaxDeg = m.maxDeg;
@@ -405,19 +414,19 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
             out.insert(out.size() - 1, fmt::format("mountings more than 10 deg off: {}\n", far));
         }
         // By mode, when any came from the nominal heading (docs/body-calibration.md, "Free
-        // headings"): the rest were measured.
-        std::array<std::vector<std::string>, 2> names;
-        std::array<double, 2> sum{};
-        std::array<double, 2> worst{};
+        // headings"), turned since from the joints or not: the rest were measured.
+        std::array<std::vector<std::string>, 3> names;
+        std::array<double, 3> sum{};
+        std::array<double, 3> worst{};
         for (std::size_t i = 0;
              i < r.nominalHeading.size() && i < r.mountingErrorDeg.size() && i < b.sensors.size();
              ++i) {
-            const std::size_t k = r.nominalHeading[i] ? 0 : 1;
+            const std::size_t k = !r.nominalHeading[i] ? 2 : fromJoints(r, i) ? 1 : 0;
             names[k].push_back(b.sensors[i].name);
             sum[k] += r.mountingErrorDeg[i];
             worst[k] = std::max(worst[k], r.mountingErrorDeg[i]);
         }
-        if (!names[0].empty()) {
+        if (!names[0].empty() || !names[1].empty()) {
             auto part = [&](std::size_t k, std::string_view mode) {
                 return names[k].empty()
                            ? fmt::format("0 {}", mode)
@@ -425,9 +434,11 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
                                          mode, sum[k] / static_cast<double>(names[k].size()),
                                          worst[k]);
             };
-            out.insert(out.size() - 1,
-                       fmt::format("mountings by mode: {} ({}); {}\n", part(0, "nominal-heading"),
-                                   fmt::join(names[0], " "), part(1, "measured")));
+            out.insert(
+                out.size() - 1,
+                fmt::format("mountings by mode: {} ({}); {} ({}); {}\n", part(0, "nominal-heading"),
+                            fmt::join(names[0], " "), part(1, "from the joints"),
+                            fmt::join(names[1], " "), part(2, "measured")));
         }
     }
     std::string clipped;
@@ -482,6 +493,22 @@ std::string formatEvaluation(const EvaluateResult& r, const board::Board& b,
         if (!freeWhy.empty()) {
             out.insert(out.size() - 1,
                        fmt::format("gyroscope-only at the end, the estimate: {}\n", freeWhy));
+        }
+        // What the joints turned the free headings by (docs/body-calibration.md, "Headings from
+        // the joints").
+        std::string turns;
+        int turned = 0;
+        for (std::size_t i = 0; i < r.jointHeadingTurnDeg.size() && i < b.sensors.size(); ++i) {
+            if (r.jointHeadingTurnDeg[i] != 0) {
+                turns += fmt::format("{}{} {:+.1f}", turns.empty() ? "" : ", ", b.sensors[i].name,
+                                     r.jointHeadingTurnDeg[i]);
+                ++turned;
+            }
+        }
+        if (turned > 0) {
+            out.insert(out.size() - 1,
+                       fmt::format("free headings set from the joints ({} sensors, deg): {}\n",
+                                   turned, turns));
         }
         if (!steps.empty()) {
             // The stepped sensors' mountings: what the re-expression gave them.
@@ -579,9 +606,13 @@ std::string evaluationJson(const std::vector<EvaluateResult>& results, const boa
         for (std::size_t i = 0; i < b.sensors.size() && i < r.mountingErrorDeg.size(); ++i) {
             const bool nominal = i < r.nominalHeading.size() && r.nominalHeading[i];
             mountings += fmt::format(
-                "{}\n        {{\"sensor\": {}, \"error_deg\": {:.6f}, \"mode\": \"{}\"}}",
+                "{}\n        {{\"sensor\": {}, \"error_deg\": {:.6f}, \"mode\": \"{}\", "
+                "\"joint_turn_deg\": {:.6f}}}",
                 i == 0 ? "" : ",", quoted(b.sensors[i].name), r.mountingErrorDeg[i],
-                nominal ? "nominal-heading" : "measured");
+                !nominal           ? "measured"
+                : fromJoints(r, i) ? "from-joints"
+                                   : "nominal-heading",
+                i < r.jointHeadingTurnDeg.size() ? r.jointHeadingTurnDeg[i] : 0.0);
         }
         out += fmt::format(
             "{}\n    {{\n      \"clip\": {},\n      \"calibration\": {},\n"

@@ -56,6 +56,8 @@ struct EvaluateOptions {
     bool footInertial = true;
     // BodyStage::Options::kneeHeading: the capture heading from the knees' axes.
     body::KneeHeadingMode kneeHeading = body::KneeHeadingMode::Estimate;
+    // BodyStage::Options::jointHeading: free headings set from the joints.
+    bool jointHeading = true;
     // Also reprocess the capture's raw samples with the non-causal pass (`caphub reprocess
     // --smooth`, firmware/reprocess.h: the same calibration, pose rate and skeleton) and score
     // its poses against the same truth.
@@ -106,6 +108,9 @@ struct EvaluateResult {
         double angleDeg = 0;
     };
     std::vector<HeadingStepFigure> headingSteps;
+    // Per sensor the turn its joints gave its free heading at the end (deg; 0: none, or measured
+    // since: body::BodyTracker::jointHeadingTurns).
+    std::vector<double> jointHeadingTurnDeg;
     double wallS = 0;
     // With reprocessSmooth: the smoothed poses' score, and the reprocess's computing time.
     std::optional<body::PoseScore> smoothed;

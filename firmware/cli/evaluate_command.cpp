@@ -41,6 +41,7 @@ struct EvaluateCliOptions {
     bool noBodyAiding = false;
     bool noFootInertial = false;
     std::string kneeHeading = "estimate";
+    bool noJointHeading = false;
     bool reprocessSmooth = false;
     std::string smoothHeading = "causal";
     bool brief = false;
@@ -193,6 +194,7 @@ int evaluate(const EvaluateCliOptions& c) {
     o.kneeHeading = c.kneeHeading == "off"    ? body::KneeHeadingMode::Off
                     : c.kneeHeading == "live" ? body::KneeHeadingMode::Live
                                               : body::KneeHeadingMode::Estimate;
+    o.jointHeading = !c.noJointHeading;
     o.reprocessSmooth = c.reprocessSmooth;
     fusion::setSmoothHeading(o.smoothing, c.smoothHeading);
     o.magState = c.magState;
@@ -385,6 +387,9 @@ void addEvaluateCommand(CLI::App& app, int& exitCode) {
                     "live (also correct it once known, mid-capture) or off "
                     "(docs/body-calibration.md)")
         ->check(CLI::IsMember({"off", "estimate", "live"}));
+    cmd->add_flag("--no-joint-heading", o->noJointHeading,
+                  "Do not set the free (gyroscope-only) headings from the joints' accelerations "
+                  "(docs/body-calibration.md, \"Headings from the joints\"): to see what it does");
     cmd->add_flag("--reprocess-smooth", o->reprocessSmooth,
                   "Also reprocess each capture's raw samples with `caphub reprocess --smooth` "
                   "and score it: live against smoothed, a table at the end");

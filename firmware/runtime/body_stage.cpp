@@ -38,6 +38,7 @@ body::BodyTrackerOptions trackerOptions(const BodyStage::Options& o) {
     t.footInertial = o.footInertial;
     t.footInertialOptions = o.footInertialOptions;
     t.kneeHeading = o.kneeHeading;
+    t.jointHeading = o.jointHeading;
     t.knownHeadingErrorRad = o.knownHeadingErrorRad;
     t.footStretches = o.footStretches;
     return t;

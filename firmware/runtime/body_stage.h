@@ -43,6 +43,10 @@ public:
         // corrected live once known), or a correction known from the whole take (reprocess).
         body::KneeHeadingMode kneeHeading = body::KneeHeadingMode::Estimate;
         std::optional<double> knownHeadingErrorRad;
+        // The free (gyroscope-only) headings of a one-pose calibration set against their
+        // neighbours' from the joints' accelerations while the body moves
+        // (body::BodyTrackerOptions::jointHeading).
+        bool jointHeading = true;
         // Offline: the feet's stretches recorded, or corrected from a pass before (null live).
         std::shared_ptr<body::FootStretchLogs> footStretches;
     };

@@ -73,6 +73,10 @@ BodyTracker::BodyTracker(const Skeleton& skeleton, std::vector<TrackedSensor> se
     thighSensor_ = {sensorOf(Segment::LThigh), sensorOf(Segment::RThigh)};
     shankSensor_ = {sensorOf(Segment::LCalf), sensorOf(Segment::RCalf)};
     kneeHeading_ = KneeHeading(options_.kneeHeadingOptions);
+    jointTurn_.assign(sensors_.size(), 0.0);
+    turnScratch_.assign(sensors_.size(), 0.0);
+    jointInputs_.resize(sensors_.size());
+    buildJointLinks(skeleton.dimensions());
     footInertial_ = {FootInertial(options_.footInertialOptions),
                      FootInertial(options_.footInertialOptions)};
     if (options_.footStretches) {
@@ -176,6 +180,9 @@ TrackerEvents BodyTracker::update(const SensorUpdate& u) {
     if (options_.kneeHeading != KneeHeadingMode::Off && !kneeHeadingDone_ &&
         (u.sensor == shankSensor_[0] || u.sensor == shankSensor_[1])) {
         addKneeSample(static_cast<std::size_t>(u.sensor), events);
+    }
+    if (options_.jointHeading && h.count == 2) {
+        addJointSample(static_cast<std::size_t>(u.sensor), u, q);
     }
     if (u.sensor == pelvisSensor_) {
         if (pelvisCount_ == kPelvisPending) {
@@ -318,6 +325,7 @@ void BodyTracker::headingResetAt(Timestamp t) {
 
 void BodyTracker::forget(std::size_t sensor) {
     held_[sensor].count = 0;
+    jointInputs_[sensor].count = 0;
     for (std::size_t k = 0; k < 2; ++k) {
         if (footSensor_[k] == static_cast<int>(sensor)) {
             footInertial_[k].reset();
@@ -350,16 +358,25 @@ void BodyTracker::forget(std::size_t sensor) {
         in.unchecked &= ~seg;
         in.uncheckedFree &= ~seg;
     }
-    // Its turn was for the heading that is gone.
+    // Its turn was for the heading that is gone, and so were its joints' sums.
     headingTurn_[sensor] = 0;
+    jointTurn_[sensor] = 0;
+    for (JointLink& l : links_) {
+        if (l.parent == static_cast<int>(sensor) || l.child == static_cast<int>(sensor)) {
+            l.heading.reset();
+        }
+    }
 }
 
-void BodyTracker::turnHeld(std::size_t i, double angleRad) {
+void BodyTracker::turnHeld(std::size_t i, double angleRad, FootOnTurn foot) {
     const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitZ()));  // about ENU up
     const Eigen::Quaternionf turnF = turn.cast<float>();
     HeldOrientation& h = held_[i];
     h.previous = (turnF * h.previous).normalized();
     h.latest = (turnF * h.latest).normalized();
+    for (auto& b : jointInputs_[i].before) {
+        b.q = (turn * b.q).normalized();
+    }
     if (i == static_cast<std::size_t>(pelvisSensor_)) {
         // The pelvis' forces not yet taken by a pose are in the frame that turned.
         for (std::size_t k = 0; k < pelvisCount_; ++k) {
@@ -370,7 +387,13 @@ void BodyTracker::turnHeld(std::size_t i, double angleRad) {
         lastPelvisForceEnu_ = turn * lastPelvisForceEnu_;
     }
     for (std::size_t k = 0; k < 2; ++k) {
-        if (footSensor_[k] == static_cast<int>(i)) {
+        if (footSensor_[k] != static_cast<int>(i)) {
+            continue;
+        }
+        if (foot == FootOnTurn::Turn) {
+            footInertial_[k].turn(turn);
+            footHistory_[k].turn(turn);
+        } else {
             // Its dead reckoning integrated in the old frame: start it again from the next still
             // instant, as after an outage.
             footInertial_[k].reset();
@@ -379,7 +402,7 @@ void BodyTracker::turnHeld(std::size_t i, double angleRad) {
     }
 }
 
-void BodyTracker::applyHeadingTurns() {
+void BodyTracker::applyHeadingTurns(FootOnTurn foot) {
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
         const int seg = idx(sensors_[i].segment);
         const double turn = has(calibration_.freeHeading & calibration_.mask, seg)
@@ -387,7 +410,7 @@ void BodyTracker::applyHeadingTurns() {
                                 : 0.0;
         if (turn != headingTurn_[i]) {
             if (held_[i].count > 0) {
-                turnHeld(i, std::remainder(turn - headingTurn_[i], 2 * std::numbers::pi));
+                turnHeld(i, std::remainder(turn - headingTurn_[i], 2 * std::numbers::pi), foot);
             }
             headingTurn_[i] = turn;
         }
@@ -441,8 +464,15 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
     cal->headingRad = std::remainder(cal->headingRad + resetTurn, 2 * std::numbers::pi);
     calibrationInput_ = in;
     calibration_ = *cal;
+    // This sensor's heading is measured now; the other free ones keep what their joints found
+    // (the computation above gave them their nominal mountings again).
+    jointTurn_[i] = 0;
+    const std::vector<double> kept = jointTurn_;
+    std::fill(jointTurn_.begin(), jointTurn_.end(), 0.0);
+    resetJointHeadings();
     // This sensor's turn dropped, the free ones' anew (relative to the capture heading now).
     applyHeadingTurns();
+    turnFreeHeadings(kept);
     solver_.setCalibration(calibration_);
     // The aiding's low-passed velocity is in the old world.
     rootVelocityValid_ = false;
@@ -694,6 +724,9 @@ void BodyTracker::completeCalibration(Timestamp t, TrackerEvents& events) {
     in.headingRad = cal->headingRad;
     calibrationInput_ = in;
     calibration_ = *cal;
+    // The joints' corrections were of the calibration before.
+    std::fill(jointTurn_.begin(), jointTurn_.end(), 0.0);
+    resetJointHeadings();
     applyHeadingTurns();
     solver_.setCalibration(calibration_);
     solver_.resetRoot();

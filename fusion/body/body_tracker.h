@@ -18,6 +18,7 @@
 #include "fusion/body/body_calibration.h"
 #include "fusion/body/body_solver.h"
 #include "fusion/body/foot_inertial.h"
+#include "fusion/body/joint_heading.h"
 #include "fusion/body/knee_heading.h"
 #include "hal/core/time.h"
 
@@ -63,6 +64,16 @@ struct BodyTrackerOptions {
     // turns by it then, mid-capture; docs/body-calibration.md).
     KneeHeadingMode kneeHeading = KneeHeadingMode::Estimate;
     KneeHeadingOptions kneeHeadingOptions;
+    // The headings of sensors that are free (gyroscope-only) at a one-pose calibration, set
+    // against their parent segment's sensor from the joint between them while the body moves
+    // (JointHeading, fusion/body/joint_heading.h): the strap's turn about the vertical that the
+    // still pose could not show.
+    bool jointHeading = true;
+    JointHeadingOptions jointHeadingOptions;
+    // No sensor is turned from its nominal mounting by more than this (rad) in all: a strap is
+    // not worn that far off (the body calibration's bound for a raw heading is 25 deg); beyond,
+    // the joint's answer is a clip's or a joint's fault, and that joint waits for more.
+    double maxJointTurnRad = 30.0 * 3.141592653589793 / 180.0;
     // Offline: the error known from a pass over the whole take, corrected at the first
     // calibration (reprocess --smooth).
     std::optional<double> knownHeadingErrorRad;
@@ -225,6 +236,10 @@ public:
     std::optional<double> kneeHeadingError() const;
     // Body calibrations completed so far.
     int calibrations() const { return calibrations_; }
+    // Per sensor the turn (rad, about up) its joints have given its free heading since the
+    // calibration in use (BodyTrackerOptions::jointHeading); 0 for a sensor whose heading is
+    // measured.
+    const std::vector<double>& jointHeadingTurns() const { return jointTurn_; }
     Duration period() const { return period_; }
 
 private:
@@ -281,17 +296,28 @@ private:
 
     void forget(std::size_t sensor);
     // What is held of a sensor (its orientations, the pelvis' forces not yet taken) turned by
-    // angleRad about ENU up, its foot's dead reckoning restarted.
-    void turnHeld(std::size_t sensor, double angleRad);
+    // angleRad about ENU up; its foot's dead reckoning restarted (a heading measured anew), or
+    // turned with it (a correction from the joints, small and frequent).
+    enum class FootOnTurn : std::uint8_t { Restart, Turn };
+    void turnHeld(std::size_t sensor, double angleRad, FootOnTurn foot = FootOnTurn::Restart);
     // Each sensor's heading turn from the calibration in use (BodyCalibration::headingTurnRad
     // for a free heading, none otherwise), what is held of it turned by the change.
-    void applyHeadingTurns();
+    void applyHeadingTurns(FootOnTurn foot = FootOnTurn::Restart);
     void average(const SensorUpdate& u);
     SensorFrame averagedFrame(const Window& w, SegmentMask only) const;
     void completeCalibration(Timestamp t, TrackerEvents& events);
     // A knee's shank sample into the capture heading's estimate; the correction once it is known
     // (KneeHeadingMode::Live).
     void addKneeSample(std::size_t sensor, TrackerEvents& events);
+    // The joints between segments with sensors (links_, jointGroup_), from the skeleton's offsets.
+    void buildJointLinks(const Dimensions& dims);
+    // A sensor's sample into its joints' relative headings; a free child turned to its parent's
+    // once known.
+    void addJointSample(std::size_t sensor, const SensorUpdate& u, const Eigen::Quaternionf& q);
+    // Free sensors' headings turned by turns[sensor] (rad) about up from now on, and their
+    // mountings with them so that the calibration pose is unchanged.
+    void turnFreeHeadings(const std::vector<double>& turns);
+    void resetJointHeadings();
     // The calibration in use can be corrected from the knees (one pose, magnetic headings).
     bool kneeHeadingApplies() const;
     // The capture heading turned by errorRad and every mounting with it, once per calibration
@@ -330,6 +356,37 @@ private:
     std::array<int, 2> shankSensor_{-1, -1};
     KneeHeading kneeHeading_;
     bool kneeHeadingDone_ = false;
+    // Each joint between two segments with sensors, and its sensors' relative heading.
+    struct JointLink {
+        int parent = -1;  // sensors
+        int child = -1;
+        Vec3d rParentSegment = Vec3d::Zero();  // sensor to joint centre, in each segment's frame
+        Vec3d rChildSegment = Vec3d::Zero();
+        JointHeading heading;
+    };
+    std::vector<JointLink> links_;
+    // A joint's relative heading into its free sensor (both free: the child; the group's mean
+    // kept when all of it is free).
+    void correctFromJoint(const JointLink& l, double angleRad);
+    // Per sensor the group of sensors its joints connect it to (the trunk's and limbs' trees).
+    std::vector<int> jointGroup_;
+    // Per sensor its two samples before the latest, for the joints: the gyroscope is
+    // differentiated about the middle one of three, and the joint's acceleration taken there.
+    struct JointInput {
+        struct Sample {
+            Timestamp t{};
+            Quatd q = Quatd::Identity();  // sensor -> ENU, turned as held
+            Vec3d forceMps2 = Vec3d::Zero();
+            Vec3d rateRadS = Vec3d::Zero();
+        };
+        std::array<Sample, 2> before;  // [0] the oldest
+        int count = 0;
+    };
+    std::vector<JointInput> jointInputs_;
+    // Per sensor a correction applied (rad): its heading turned so far from its joints.
+    std::vector<double> jointTurn_;
+    std::vector<double> turnScratch_;  // per sensor, for turnFreeHeadings
+    static constexpr double kMinJointTurnRad = 0.25 * 3.141592653589793 / 180.0;
     int calibrations_ = 0;  // completed
     std::array<FootInertial, 2> footInertial_;
 

@@ -98,6 +98,21 @@ void FootInertial::add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Ve
     reported_ = velocity_ - errorRate_ * std::min(sinceStillS_, correctedSpanS_);
 }
 
+void FootInertial::turn(const Quatd& turn) {
+    velocity_ = turn * velocity_;
+    reported_ = turn * reported_;
+    lastAcceleration_ = turn * lastAcceleration_;
+    rateEnu_ = turn * rateEnu_;
+    errorRate_ = turn * errorRate_;
+}
+
+void FootStateHistory::turn(const Quatd& turn) {
+    for (FootSample& s : states_) {
+        s.velocityEnuMps = turn * s.velocityEnuMps;
+        s.rateEnuRadS = turn * s.rateEnuRadS;
+    }
+}
+
 void FootStateHistory::push(const FootSample& s) {
     states_[head_] = s;
     head_ = (head_ + 1) % kSize;

@@ -67,6 +67,9 @@ public:
     void add(const Quatd& qEnuSensor, const Vec3d& forceMps2, const Vec3d& rateRadS, double dtS);
     // Forget the motion (a sensor lost, a new capture): invalid until the foot is still again.
     void reset();
+    // The sensor's orientations turned by `turn` (ENU, on the left) from now on: what was
+    // integrated in the old frame is carried into the new one.
+    void turn(const Quatd& turn);
     // Offline: record each stretch's end into `log`, or take the errors it recorded off the
     // velocity, the error of a stretch growing linearly from its start (a constant acceleration
     // error: a bias, a tilt) to its end. A stretch whose length differs from the recorded one
@@ -126,6 +129,8 @@ public:
     static constexpr std::size_t kSize = 8;
     void push(const FootSample& s);
     void clear() { count_ = 0; }
+    // Every held state's vectors turned (ENU, on the left), as FootInertial::turn.
+    void turn(const Quatd& turn);
     // The state at t: the velocity and rate interpolated between the samples around it (the
     // still flag and validity of the one at or before t; not interpolated towards a still one,
     // whose zero velocity is a step), the oldest held when t is before them all, the newest

@@ -63,6 +63,32 @@ TEST(FootInertial, IntegratesTheWorldAccelerationFromTheLatestStillInstant) {
     EXPECT_EQ(f.velocityEnuMps(), Vec3d::Zero());
 }
 
+// The sensor's heading turned mid-stride (a correction from its joints): the velocity integrated
+// so far turns with it and the integration goes on in the new frame, from the same still
+// instant.
+TEST(FootInertial, ATurnCarriesTheVelocityIntoTheTurnedFrame) {
+    FootInertial f;
+    holdStill(f, 10);
+    const Vec3d a(1.5, -0.8, 0.3);
+    move(f, a, 20);
+    const Vec3d before = f.velocityEnuMps();
+    const Quatd turn(Eigen::AngleAxisd(0.2, Vec3d::UnitZ()));
+    f.turn(turn);
+    EXPECT_TRUE(f.valid()) << "not restarted";
+    EXPECT_LT((f.velocityEnuMps() - turn * before).norm(), 1e-12);
+    // The sensor's orientations come turned from now on: so does the acceleration they give.
+    const Quatd q = turn * kTurned;
+    for (int k = 0; k < 10; ++k) {
+        f.add(q, q.conjugate() * (turn * a + Vec3d(0, 0, kG)), Vec3d(2.0, 0.5, -1.0), kDt);
+    }
+    EXPECT_LT((f.velocityEnuMps() - turn * (a * (29.5 * kDt))).norm(), 1e-9);
+    FootStateHistory history;
+    history.push({Timestamp{}, true, true, false, before, Vec3d(0, 0, 1)});
+    history.turn(turn);
+    ASSERT_TRUE(history.at(Timestamp{}).has_value());
+    EXPECT_LT((history.at(Timestamp{})->velocityEnuMps - turn * before).norm(), 1e-12);
+}
+
 TEST(FootInertial, OneQuietSampleInMotionIsNotAStillInstant) {
     // A swinging foot passes through low rates and about 1 g at its turning points; a single
     // such sample (10 ms at 100 Hz) must not zero the velocity.
