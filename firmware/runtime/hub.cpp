@@ -3,6 +3,7 @@
 #include <cctype>
 #include <ctime>
 #include <future>
+#include <numbers>
 
 #include <fmt/format.h>
 
@@ -345,6 +346,10 @@ HubState Hub::state() {
         s.gyroClipEvents.resize(board_.sensors.size());
         for (std::size_t i = 0; i < board_.sensors.size(); ++i) {
             s.gyroClipEvents[i] = fusion_.clipEvents(static_cast<int>(i));
+        }
+        s.jointTurnDeg.clear();
+        for (const double turn : body_.tracker().jointHeadingTurns()) {
+            s.jointTurnDeg.push_back(turn * 180.0 / std::numbers::pi);
         }
         if (const RecordingWriter* w = recorder_.current(); w != nullptr && s.take) {
             s.take->records = w->stats().records;

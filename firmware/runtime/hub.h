@@ -94,6 +94,9 @@ struct HubState {
     LatencyWindow poseLatency{1};
     // Per board sensor: gyroscope clipping episodes so far (saturation).
     std::vector<std::uint32_t> gyroClipEvents;
+    // Per board sensor: the turn (deg) its joints gave its free heading since the body
+    // calibration (body::BodyTracker::jointHeadingTurns; 0: none).
+    std::vector<double> jointTurnDeg;
 };
 
 class Hub {

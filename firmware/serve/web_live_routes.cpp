@@ -56,6 +56,11 @@ Json WebServer::State::buildState(const HubState& h) {
         for (std::size_t i = 0; i < board.sensors.size() && i < h.gyroClipEvents.size(); ++i) {
             if (board.sensors[i].name == name) {
                 sensor["gyro_clip_events"] = h.gyroClipEvents[i];
+                // A free heading's strap turn found from the joints (docs/body-calibration.md,
+                // "Headings from the joints").
+                if (i < h.jointTurnDeg.size() && h.jointTurnDeg[i] != 0) {
+                    sensor["joint_turn_deg"] = h.jointTurnDeg[i];
+                }
             }
         }
     }

@@ -122,7 +122,8 @@ function headingCell(x) {
   if (x.heading && x.heading_learning) {
     const detail = document.createElement('span');
     detail.className = 'detail';
-    detail.textContent = `: ${headingDetail(x.heading_learning)}`;
+    detail.textContent = `: ${headingDetail(x.heading_learning)}`
+      + (x.joint_turn_deg === undefined ? '' : `; strap set from the joints (${x.joint_turn_deg > 0 ? '+' : ''}${fmt(x.joint_turn_deg)} deg)`);
     td.appendChild(detail);
   }
   return td;
@@ -178,15 +179,18 @@ function showState(s) {
   }
   $('cal-status').textContent = text;
   // Sensors with no magnetic heading yet: a body calibration cannot tell how their straps are
-  // turned about the vertical until the online estimate has measured their headings (then it
-  // is re-expressed for each: docs/body-calibration.md, "Free headings").
+  // turned about the vertical; the joints set them against each other once the body moves, and
+  // the online estimate corrects each once it has measured its heading (docs/body-calibration.md,
+  // "Free headings", "Headings from the joints").
   const free = s.sensors.filter((x) => x.online && x.heading === 'gyro-only').map((x) => x.name);
   $('cal-heading-hint').textContent = free.length === 0 ? ''
     : `${free.length} sensor${free.length > 1 ? 's have' : ' has'} no magnetic heading yet (${free.join(', ')}): `
-      + 'until the online estimate measures their headings, a body calibration cannot tell how '
-      + 'their straps are turned about the vertical (it is corrected for each once measured). '
-      + 'Move about and turn each limb through different directions until the sensor table reads '
-      + 'online-hard-iron, or calibrate the magnetometers (Sensor calibration, step 3).';
+      + 'a body calibration cannot tell how their straps are turned about the vertical. After it, '
+      + 'walk a few steps, swinging the arms: the joints set the straps against each other (the '
+      + 'sensor table says so), and the online estimate corrects each heading once it has measured '
+      + 'it. Turning each limb through different directions until the table reads '
+      + 'online-hard-iron, or calibrating the magnetometers (Sensor calibration, step 3), '
+      + 'measures them before the calibration.';
   const hr = b.heading_reset || {};
   $('heading-status').textContent =
     hr.state === 'pending' ? 'heading reset: waiting for the capture to reach it'
