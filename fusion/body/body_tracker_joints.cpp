@@ -130,18 +130,24 @@ void BodyTracker::correctFromJoint(const JointLink& l, double angleRad) {
     // A group whose headings are all free has no heading of its own: its mean stays where the
     // calibration put it (the nominal mountings', whose straps' turns about the vertical average
     // out over the group) rather than going to one sensor's strap.
+    // The members are the group's sensors that report now: one that is out (lost) has a frame
+    // of its own when it comes back, which its share would only move.
     const int group = jointGroup_[turned];
+    const SegmentMask lost = calibrationInput_ ? calibrationInput_->lost : 0;
+    const auto member = [&](std::size_t k) {
+        return jointGroup_[k] == group && online_[k] && !has(lost, idx(sensors_[k].segment));
+    };
     int members = 0;
     bool allFree = true;
     for (std::size_t k = 0; k < sensors_.size(); ++k) {
-        if (jointGroup_[k] == group) {
+        if (member(k)) {
             ++members;
             allFree = allFree && freeNow(k);
         }
     }
     if (allFree && members > 1) {
         for (std::size_t k = 0; k < sensors_.size(); ++k) {
-            if (jointGroup_[k] == group) {
+            if (member(k)) {
                 turnScratch_[k] -= by / members;
             }
         }
