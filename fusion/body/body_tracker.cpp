@@ -480,6 +480,16 @@ TrackerEvents BodyTracker::realignHeading(int sensor, double angleRad) {
     return events;
 }
 
+void BodyTracker::turnMounting(Segment segment, double angleRad) {
+    const ReferencePoseKind pose = calibration_.method == CalibrationMethod::NPose
+                                       ? ReferencePoseKind::N
+                                       : ReferencePoseKind::T;
+    const Quatd ref = referenceOrientation(pose, segment);
+    const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitY()));
+    auto& m = calibration_.mounting[static_cast<std::size_t>(idx(segment))];
+    m = (ref.conjugate() * turn * ref * m).normalized();
+}
+
 bool BodyTracker::kneeHeadingApplies() const {
     // Only a calibration taken in one pose from magnetic headings: a free heading's mounting is
     // the nominal one about the vertical (its own strap's turn, not the capture heading's, turns
@@ -492,17 +502,11 @@ bool BodyTracker::kneeHeadingApplies() const {
 void BodyTracker::turnCaptureHeading(double errorRad, TrackerEvents& events) {
     // The capture heading was off by the error: psi + error, and every mounting
     // q_segment_sensor = q_W_segment(ref)^-1 q_ENU_W^-1 q_ENU_sensor turns with it.
-    const ReferencePoseKind pose = calibration_.method == CalibrationMethod::NPose
-                                       ? ReferencePoseKind::N
-                                       : ReferencePoseKind::T;
-    const Quatd turn(Eigen::AngleAxisd(-errorRad, Vec3d::UnitY()));
     for (int i = 0; i < kSegmentCount; ++i) {
         if ((calibration_.mask & bit(static_cast<Segment>(i))) == 0) {
             continue;
         }
-        const Quatd ref = referenceOrientation(pose, static_cast<Segment>(i));
-        auto& m = calibration_.mounting[static_cast<std::size_t>(i)];
-        m = (ref.conjugate() * turn * ref * m).normalized();
+        turnMounting(static_cast<Segment>(i), -errorRad);
     }
     calibration_.headingRad =
         std::remainder(calibration_.headingRad + errorRad, 2 * std::numbers::pi);

@@ -20,6 +20,7 @@
 #include "fusion/body/foot_inertial.h"
 #include "fusion/body/joint_heading.h"
 #include "fusion/body/knee_heading.h"
+#include "hal/core/angles.h"
 #include "hal/core/time.h"
 
 namespace caphub::body {
@@ -73,7 +74,7 @@ struct BodyTrackerOptions {
     // No sensor is turned from its nominal mounting by more than this (rad) in all: a strap is
     // not worn that far off (the body calibration's bound for a raw heading is 25 deg); beyond,
     // the joint's answer is a clip's or a joint's fault, and that joint waits for more.
-    double maxJointTurnRad = 30.0 * 3.141592653589793 / 180.0;
+    double maxJointTurnRad = 30.0 * hal::kDegToRad;
     // Offline: the error known from a pass over the whole take, corrected at the first
     // calibration (reprocess --smooth).
     std::optional<double> knownHeadingErrorRad;
@@ -320,6 +321,10 @@ private:
     void resetJointHeadings();
     // The calibration in use can be corrected from the knees (one pose, magnetic headings).
     bool kneeHeadingApplies() const;
+    // A segment's mounting turned by angleRad about the up of the calibration's reference pose
+    // (ENU up, in the capture world), so that the reference pose stays what it was when its
+    // sensor's orientations turn by that angle (q_segment_sensor = ref^-1 Ry(a) ref q).
+    void turnMounting(Segment segment, double angleRad);
     // The capture heading turned by errorRad and every mounting with it, once per calibration
     // (the events say so).
     void turnCaptureHeading(double errorRad, TrackerEvents& events);
@@ -386,7 +391,7 @@ private:
     // Per sensor a correction applied (rad): its heading turned so far from its joints.
     std::vector<double> jointTurn_;
     std::vector<double> turnScratch_;  // per sensor, for turnFreeHeadings
-    static constexpr double kMinJointTurnRad = 0.25 * 3.141592653589793 / 180.0;
+    static constexpr double kMinJointTurnRad = 0.25 * hal::kDegToRad;
     int calibrations_ = 0;  // completed
     std::array<FootInertial, 2> footInertial_;
 

@@ -162,9 +162,6 @@ void BodyTracker::resetJointHeadings() {
 }
 
 void BodyTracker::turnFreeHeadings(const std::vector<double>& turns) {
-    const ReferencePoseKind pose = calibration_.method == CalibrationMethod::NPose
-                                       ? ReferencePoseKind::N
-                                       : ReferencePoseKind::T;
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
         const double angleRad = turns[i];
         const Segment segment = sensors_[i].segment;
@@ -172,10 +169,7 @@ void BodyTracker::turnFreeHeadings(const std::vector<double>& turns) {
             continue;
         }
         const auto seg = static_cast<std::size_t>(idx(segment));
-        const Quatd ref = referenceOrientation(pose, segment);
-        const Quatd turn(Eigen::AngleAxisd(angleRad, Vec3d::UnitY()));
-        auto& m = calibration_.mounting[seg];
-        m = (ref.conjugate() * turn * ref * m).normalized();
+        turnMounting(segment, angleRad);
         calibration_.headingTurnRad[seg] =
             std::remainder(calibration_.headingTurnRad[seg] + angleRad, 2 * std::numbers::pi);
         jointTurn_[i] += angleRad;
