@@ -361,10 +361,8 @@ void BodyTracker::forget(std::size_t sensor) {
     // Its turn was for the heading that is gone, and so were its joints' sums.
     headingTurn_[sensor] = 0;
     jointTurn_[sensor] = 0;
-    for (JointLink& l : links_) {
-        if (l.parent == static_cast<int>(sensor) || l.child == static_cast<int>(sensor)) {
-            l.heading.reset();
-        }
+    for (const std::size_t k : linksOf_[sensor]) {
+        links_[k].heading.reset();
     }
 }
 

@@ -370,6 +370,9 @@ private:
         JointHeading heading;
     };
     std::vector<JointLink> links_;
+    // Per sensor the links it is on (two or three of links_: its own to the sensor above, and
+    // those of the sensors below it), so that a sample visits only those.
+    std::vector<std::vector<std::size_t>> linksOf_;
     // A joint's relative heading into its free sensor (both free: the child; the group's mean
     // kept when all of it is free).
     void correctFromJoint(const JointLink& l, double angleRad);

@@ -34,6 +34,11 @@ void BodyTracker::buildJointLinks(const Dimensions& dims) {
         l.heading = JointHeading(options_.jointHeadingOptions);
         links_.push_back(l);
     }
+    linksOf_.assign(sensors_.size(), {});
+    for (std::size_t k = 0; k < links_.size(); ++k) {
+        linksOf_[static_cast<std::size_t>(links_[k].parent)].push_back(k);
+        linksOf_[static_cast<std::size_t>(links_[k].child)].push_back(k);
+    }
     jointGroup_.resize(sensors_.size());
     for (std::size_t i = 0; i < sensors_.size(); ++i) {
         jointGroup_[i] = static_cast<int>(i);
@@ -81,12 +86,9 @@ void BodyTracker::addJointSample(std::size_t sensor, const SensorUpdate& u,
     const double tS = toSeconds(mid.t.time_since_epoch());
     const auto seg = static_cast<std::size_t>(idx(sensors_[sensor].segment));
     const Quatd sensorFromSegment = calibration_.mounting[seg].conjugate();
-    for (JointLink& l : links_) {
-        const bool asParent = l.parent == static_cast<int>(sensor);
+    for (const std::size_t k : linksOf_[sensor]) {
+        JointLink& l = links_[k];
         const bool asChild = l.child == static_cast<int>(sensor);
-        if (!asParent && !asChild) {
-            continue;
-        }
         const Vec3d r = sensorFromSegment * (asChild ? l.rChildSegment : l.rParentSegment);
         // The specific force at the joint centre: the sensor's, and the rigid segment's turning
         // carried over the lever arm.
@@ -173,13 +175,11 @@ void BodyTracker::turnFreeHeadings(const std::vector<double>& turns) {
         calibration_.headingTurnRad[seg] =
             std::remainder(calibration_.headingTurnRad[seg] + angleRad, 2 * std::numbers::pi);
         jointTurn_[i] += angleRad;
-        for (JointLink& l : links_) {
-            if (l.child == static_cast<int>(i)) {
-                l.heading.turn(JointHeading::Child, angleRad);
-            }
-            if (l.parent == static_cast<int>(i)) {
-                l.heading.turn(JointHeading::Parent, angleRad);
-            }
+        for (const std::size_t k : linksOf_[i]) {
+            JointLink& l = links_[k];
+            l.heading.turn(
+                l.child == static_cast<int>(i) ? JointHeading::Child : JointHeading::Parent,
+                angleRad);
         }
     }
     applyHeadingTurns(FootOnTurn::Turn);
