@@ -236,7 +236,11 @@ for record in (False, True):
         pass
     print(f"flood, {'recording' if record else 'live'}: {calls} timer calls, the longest "
           f"{worst_s * 1000:.1f} ms, {received} frames taken")
-    check(timer_error is None and calls >= 5 and worst_s < 0.5 and received > 1000,
+    # Frames taken: the timer keeps reading through the flood. How many depends on how fast the
+    # flooding process runs beside Blender, not on the add-on: 873 in 1.5 s while recording on
+    # a 2-core machine busy with two other test processes and a build (a CI run, 2026-11-28),
+    # several thousand on a quiet one; a timer that stopped reading takes none.
+    check(timer_error is None and calls >= 5 and worst_s < 0.5 and received > 100,
           f"flood ({'recording' if record else 'live'}): {calls} calls, the longest "
           f"{worst_s:.2f} s, {timer_error}")
     serial += 1
