@@ -44,7 +44,7 @@ double distanceToSegment(const Vec2d& p, const Vec2d& a, const Vec2d& b) {
 }
 
 // How far p is from the convex hull of the n points (0 inside it).
-double distanceToHull(const Vec2d& p, std::array<Vec2d, 6> pts, std::size_t n) {
+double distanceToHull(const Vec2d& p, std::array<Vec2d, 8> pts, std::size_t n) {
     n = std::min(n, pts.size());
     if (n == 0) {
         return std::numeric_limits<double>::infinity();
@@ -54,7 +54,7 @@ double distanceToHull(const Vec2d& p, std::array<Vec2d, 6> pts, std::size_t n) {
         return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
     });
     // Andrew's monotone chain, counter-clockwise.
-    std::array<Vec2d, 12> hull{};
+    std::array<Vec2d, 16> hull{};
     std::size_t h = 0;
     for (std::size_t i = 0; i < n; ++i) {
         while (h >= 2 && cross(hull[h - 2], hull[h - 1], pts[i]) <= 0) {
@@ -86,6 +86,8 @@ double distanceToHull(const Vec2d& p, std::array<Vec2d, 6> pts, std::size_t n) {
 }
 
 constexpr int kSeatPoint = 6;
+constexpr int kLeftKneePoint = 7;
+constexpr int kRightKneePoint = 8;
 
 // The lowest of the feet's six points (heel, ball, toe tip of each).
 int lowestPoint(const std::array<Vec3d, 6>& points) {
@@ -100,7 +102,27 @@ int lowestPoint(const std::array<Vec3d, 6>& points) {
 }
 
 bool isSeat(int point) {
-    return point >= kSeatPoint;
+    return point == kSeatPoint;
+}
+
+bool isKnee(int point) {
+    return point == kLeftKneePoint || point == kRightKneePoint;
+}
+
+bool isFoot(int point) {
+    return point >= 0 && point < 6;
+}
+
+// Where the knees' contact points are on a pose (relative to the root while the pose's root is
+// at the origin), left then right.
+std::array<Vec3d, 2> kneesOnPose(const Pose& pose, const ContactOptions& options) {
+    return {pointOnSegment(pose, idx(S::LCalf), options.kneeFrontM),
+            pointOnSegment(pose, idx(S::RCalf), options.kneeFrontM)};
+}
+
+ContactPhase sideOf(int point) {
+    const bool left = point < 3 || point == kLeftKneePoint;
+    return left ? ContactPhase::LeftStance : ContactPhase::RightStance;
 }
 
 }  // namespace
@@ -159,6 +181,14 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
             }
         }
     }
+    const std::array<Vec3d, 2> knees = kneesOnPose(pose, options_);
+    for (std::size_t i = 0; i < 2; ++i) {
+        const double y = (knees[i] - old).y();
+        if (y < lowest) {
+            lowest = y;
+            lowestIndex = i == 0 ? kLeftKneePoint : kRightKneePoint;
+        }
+    }
     root_ = Vec3d(rootXM, -lowest, rootZM);
     levels_[0] = 0;  // the floor
     levelCount_ = 1;
@@ -170,7 +200,7 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
     velocity_.setZero();
     smoothVelocity_.setZero();
     fusedVelocity_.setZero();
-    phase_ = lowestIndex < 3 ? ContactPhase::LeftStance : ContactPhase::RightStance;
+    phase_ = sideOf(lowestIndex);
     point_ = lowestIndex;
     freeFallCount_ = 0;
     stanceChanges_ = 0;
@@ -181,11 +211,18 @@ void RootTracker::reset(const Dimensions& d, Pose& pose, double rootXM, double r
         p += root_ - old;
     }
     // The anchor is the contact point's world position.
-    const int seg = idx(lowestIndex < 3 ? S::LHindfoot : S::RHindfoot);
-    const auto& pts = lowestIndex < 3 ? d.leftFootPointM : d.rightFootPointM;
-    anchor_ = pointOnSegment(pose, seg, pts[static_cast<std::size_t>(lowestIndex % 3)]);
+    if (isKnee(lowestIndex)) {
+        anchor_ = knees[lowestIndex == kLeftKneePoint ? 0 : 1] + (root_ - old);
+    } else {
+        const int seg = idx(lowestIndex < 3 ? S::LHindfoot : S::RHindfoot);
+        const auto& pts = lowestIndex < 3 ? d.leftFootPointM : d.rightFootPointM;
+        anchor_ = pointOnSegment(pose, seg, pts[static_cast<std::size_t>(lowestIndex % 3)]);
+    }
     anchor_.y() = 0;
     seatRelM_ = seatOnPose(pose, options_) - root_;
+    for (std::size_t i = 0; i < 2; ++i) {
+        kneeRelM_[i] = knees[i] - old;
+    }
     offFeetS_ = 0;
     started_ = true;
 }
@@ -217,6 +254,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     // The seat relative to the root, and its velocity.
     const Vec3d seat = seatOnPose(pose, options_);
     const Vec3d seatVelocity = dtS > 0 ? Vec3d((seat - seatRelM_) / dtS) : Vec3d::Zero();
+    const std::array<Vec3d, 2> knees = kneesOnPose(pose, options_);
     if (freeFallCount_ == 1) {
         // The take-off was during this frame, so the root's state at its start (the feet, now
         // unloaded, stop carrying the root, and they rarely leave the floor at a frame's start).
@@ -292,8 +330,8 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
             ++stanceChanges_;
         }
     } else {
-        next =
-            stanceStep(pose, feet, minY, footSensors, dtS, comOffset, comRate, seat, seatVelocity);
+        next = stanceStep(pose, feet, minY, footSensors, dtS, comOffset, comRate, seat,
+                          seatVelocity, knees);
         if (force && dtS > 0 && !isSeat(point_)) {
             // Across, no faster a change of velocity than the pelvis accelerometer measures
             // allows (ContactOptions::contactStepMps): the excess is the held point slipping.
@@ -330,6 +368,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
     }
     comOffset_ = comOffset;
     seatRelM_ = seat;
+    kneeRelM_ = knees;
     footSensorsKnown_ = footSensors != nullptr;
     if (footSensorsKnown_) {
         for (std::size_t f = 0; f < 2; ++f) {
@@ -355,7 +394,7 @@ void RootTracker::update(const Dimensions& d, Pose& pose, const FootState& feet,
 Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double minY,
                               const FootSensorMotion* footSensors, double dtS,
                               const Vec3d& comOffset, const Vec3d& comRate, const Vec3d& seat,
-                              const Vec3d& seatVelocity) {
+                              const Vec3d& seatVelocity, const std::array<Vec3d, 2>& knees) {
     // The anchored point is the one predicted to move least in the world. Its velocity
     // relative to the root plus the (low-passed) root velocity predicts its world velocity;
     // only points near the floor qualify, and the seat while the subject sits. The anchor
@@ -363,14 +402,29 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     // change never makes the root jump: drift comes only from holding a point that in truth
     // moves, which this choice minimises.
     const auto& r = feet.pointM;  // relative to the root
-    const bool offFeet = seated(pose, r, minY, comOffset, comRate);
+    // The knees' velocities relative to the root, and the lowest point of the feet and knees.
+    std::array<Vec3d, 2> kneeVelocity{Vec3d::Zero(), Vec3d::Zero()};
+    std::array<Vec3d, 8> points{};
+    std::copy(r.begin(), r.end(), points.begin());
+    double lowY = minY;
+    for (std::size_t i = 0; i < 2; ++i) {
+        if (dtS > 0) {
+            kneeVelocity[i] = (knees[i] - kneeRelM_[i]) / dtS;
+        }
+        points[6 + i] = knees[i];
+        lowY = std::min(lowY, knees[i].y());
+    }
+    auto kneeOf = [](int k) { return static_cast<std::size_t>(k - kLeftKneePoint); };
+    const bool offFeet = seated(pose, points, lowY, comOffset, comRate);
     offFeetS_ = offFeet ? offFeetS_ + dtS : 0;
     const bool seatQualifies = offFeet && offFeetS_ >= options_.seatedForS - 1e-9;
     auto relative = [&](int k) -> Vec3d {
-        return isSeat(k) ? seat : r[static_cast<std::size_t>(k)];
+        return isSeat(k) ? seat : isKnee(k) ? knees[kneeOf(k)] : r[static_cast<std::size_t>(k)];
     };
     auto predictedSpeed = [&](int k) {
-        const Vec3d v = isSeat(k) ? seatVelocity : feet.velocityMps[static_cast<std::size_t>(k)];
+        const Vec3d v = isSeat(k)   ? seatVelocity
+                        : isKnee(k) ? kneeVelocity[kneeOf(k)]
+                                    : feet.velocityMps[static_cast<std::size_t>(k)];
         return (smoothVelocity_ + v).norm();
     };
     // While the seat carries the body no foot point does: the feet may hang or rest on a
@@ -402,6 +456,10 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         if (isSeat(k)) {
             return seatQualifies;
         }
+        if (isKnee(k)) {
+            return !onSeat && knees[kneeOf(k)].y() - lowY <= options_.heightM &&
+                   minY - lowY > options_.heightM;
+        }
         if (plantedFoot_ == k / 3 && !onSeat &&
             r[static_cast<std::size_t>(k)].y() - footMinY[static_cast<std::size_t>(k / 3)] <=
                 options_.heightM) {
@@ -410,10 +468,10 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         // A foot at rest takes the body on its own level when that is a step above the
         // lowest point, and keeps it there while it rests.
         const auto u = static_cast<std::size_t>(k);
-        const bool onOtherLevel = footMinY[u / 3] - minY > options_.levelSnapM ||
-                                  (!isSeat(point_) && point_ / 3 == k / 3);
+        const bool onOtherLevel =
+            footMinY[u / 3] - minY > options_.levelSnapM || (isFoot(point_) && point_ / 3 == k / 3);
         return !onSeat &&
-               (r[u].y() - minY <= options_.heightM ||
+               (r[u].y() - lowY <= options_.heightM ||
                 (resting(k) && onOtherLevel && r[u].y() - footMinY[u / 3] <= options_.heightM));
     };
     // Where the held point puts the root: on the seat, where the seat is; on a foot, the
@@ -423,14 +481,16 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         Vec3d at = anchor_ - relative(k);
         if (!isSeat(k)) {
             // The lowest of the points on the held one's support (not below it by more
-            // than heightM) stands on its level.
-            const double y = r[static_cast<std::size_t>(k)].y();
+            // than heightM) stands on its level: the feet's and the knees'.
+            const double y = relative(k).y();
             double lowest = y;
-            for (std::size_t j = 0; j < r.size(); ++j) {
-                // A planted foot is its own support: the other, swinging up past it, is not.
-                const bool ownFoot = plantedFoot_ != k / 3 || static_cast<int>(j / 3) == k / 3;
-                if (ownFoot && r[j].y() >= y - options_.heightM) {
-                    lowest = std::min(lowest, r[j].y());
+            for (std::size_t j = 0; j < points.size(); ++j) {
+                // A planted foot is its own support: the other foot, swinging up past it, and
+                // the knees are not.
+                const bool ownFoot = !isFoot(k) || plantedFoot_ != k / 3 ||
+                                     (j < r.size() && static_cast<int>(j / 3) == k / 3);
+                if (ownFoot && points[j].y() >= y - options_.heightM) {
+                    lowest = std::min(lowest, points[j].y());
                 }
             }
             at.y() = anchor_.y() - lowest;
@@ -453,7 +513,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
         }
         return least;
     };
-    auto [best, bestSpeed] = leastMoving(0, kSeatPoint);
+    auto [best, bestSpeed] = leastMoving(0, kRightKneePoint);
     // The body off its feet in a sitting posture is on the seat: the seat takes it at once,
     // whatever the feet do (one lifted to a rung moves less in the world than the seat
     // predicted from a root that the floor is pulling down with it).
@@ -468,32 +528,34 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     // best < 0: no point qualifies (not finite): the held one stays.
     if (best >= 0 && best != point_ &&
         (!qualifies(point_) || bestSpeed < predictedSpeed(point_) - options_.switchMarginMps)) {
-        if (!isSeat(best) && !isSeat(point_) && (best < 3) != (point_ < 3)) {
+        if (isFoot(best) && isFoot(point_) && (best < 3) != (point_ < 3)) {
             ++stanceChanges_;
         }
         const int held = point_;
         point_ = best;
-        phase_ = isSeat(best) ? ContactPhase::Seated
-                 : best < 3   ? ContactPhase::LeftStance
-                              : ContactPhase::RightStance;
+        phase_ = isSeat(best) ? ContactPhase::Seated : sideOf(best);
         // The new point's level: its height under the held point itself, not under the
         // lowest foot point (in a push-off the rigid foot's toe tip dips below the floor it
         // stands on, and would put a foot that is on the floor above it).
-        double height = isSeat(held) ? here.y() + r[static_cast<std::size_t>(best)].y()
+        double height = isSeat(held) ? here.y() + relative(best).y()
                                      : anchor_.y() - relative(held).y() + relative(best).y();
         // A foot that came to rest on another level (a tread above or below) while a foot
         // carried the body: the level it was measured on then (by the hand-over the held foot
         // has begun to lift, and the root with it).
         const std::optional<double>& landed =
-            isSeat(best) ? std::optional<double>()
-                         : landedLevelM_[static_cast<std::size_t>(best / 3)];
-        const bool onOtherTread = !isSeat(held) && !isSeat(best) && best / 3 != held / 3 &&
-                                  landed && std::abs(*landed - anchor_.y()) > options_.heightM;
+            isFoot(best) ? landedLevelM_[static_cast<std::size_t>(best / 3)]
+                         : std::optional<double>();
+        const bool onOtherTread = isFoot(held) && isFoot(best) && best / 3 != held / 3 && landed &&
+                                  std::abs(*landed - anchor_.y()) > options_.heightM;
         if (onOtherTread) {
             height = *landed;
         }
         anchor_ = here + relative(best);
-        if (!isSeat(best)) {
+        if (isKnee(best)) {
+            // A knee takes the body where it is: on a known level within levelSnapM of it (the
+            // floor, a step), else on a level of its own (a bench, a chair's seat).
+            anchor_.y() = supportLevel(height, true, false);
+        } else if (isFoot(best)) {
             // Landing: the new point's foot, by its own sensor, is not swinging.
             const double v = footSensors != nullptr
                                  ? footSpeed(*footSensors, static_cast<std::size_t>(best / 3))
@@ -502,7 +564,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
             anchor_.y() = supportLevel(
                 height, resting(best) || plantedFoot_ == best / 3 || onOtherTread, landing);
         }
-        if (plantedFoot_ >= 0 && (isSeat(best) || best / 3 != plantedFoot_)) {
+        if (plantedFoot_ >= 0 && (!isFoot(best) || best / 3 != plantedFoot_)) {
             plantedFoot_ = -1;  // the body left it
         }
     }
@@ -511,7 +573,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     // is the sensor's plus the rate crossed with the lever from the sensor to the point).
     const int foot = point_ < 3 ? 0 : 1;
     const auto uf = static_cast<std::size_t>(foot);
-    if (!isSeat(point_) && footSensors != nullptr &&
+    if (isFoot(point_) && footSensors != nullptr &&
         (footSensors->valid[uf] || slidingLate(*footSensors, uf)) && !footSensors->still[uf] &&
         dtS > 0) {
         const Vec3d sensor = footSensorOnPose(pose, *footSensors, uf);
@@ -524,7 +586,7 @@ Vec3d RootTracker::stanceStep(const Pose& pose, const FootState& feet, double mi
     return placeOn(point_);
 }
 
-bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY,
+bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 8>& points, double minY,
                          const Vec3d& com, const Vec3d& comVelocityAboutRoot) const {
     const double cosMax = std::cos(options_.seatedThighDeg * hal::kDegToRad);
     for (const S thigh : {S::LThigh, S::RThigh}) {
@@ -534,12 +596,12 @@ bool RootTracker::seated(const Pose& pose, const std::array<Vec3d, 6>& feet, dou
             return false;
         }
     }
-    // Off its feet: the centre of mass further across from the feet's support (the hull of the
-    // points near the floor) than half a foot's width. Standing, squatting or crouching, the
-    // body keeps its centre of mass over its feet or it falls.
-    std::array<Vec2d, 6> support{};
+    // Off its feet: the centre of mass further across from the support of the feet and knees
+    // (the hull of their points near the floor) than half a foot's width. Standing, squatting,
+    // crouching or kneeling, the body keeps its centre of mass over its support or it falls.
+    std::array<Vec2d, 8> support{};
     std::size_t n = 0;
-    for (const Vec3d& p : feet) {
+    for (const Vec3d& p : points) {
         if (p.y() - minY <= options_.heightM && p.allFinite()) {
             support[n++] = Vec2d(p.x(), p.z());
         }
@@ -567,7 +629,7 @@ bool RootTracker::updatePlantedFoot(const FootSensorMotion& footSensors,
                                     const std::array<double, 2>& footMinY,
                                     const std::array<double, 2>& soleY) {
     auto speed = [&](std::size_t f) { return footSpeed(footSensors, f); };
-    const bool onFoot = !isSeat(point_) && point_ >= 0;
+    const bool onFoot = isFoot(point_);
     // Each foot's level as it comes to rest while the other carries the body: the held foot's,
     // and the rise from the held foot's sole to the resting foot's lowest point (it has just
     // come down on it), a tread's height, before the held foot lifts.

@@ -1,6 +1,6 @@
 // Root translation from foot contacts: the foot point that is still (heel, ball or toe of either
-// foot) is held where it is and the root follows it; with both feet off the floor (a jump) the
-// root flies ballistically.
+// foot; a knee when kneeling, the seat when sitting) is held where it is and the root follows it;
+// with both feet off the floor (a jump) the root flies ballistically.
 // The floor is at the height the feet had at reset; a foot at rest on a tread or a step above or
 // below it makes a level of its own (docs/skeleton.md).
 #pragma once
@@ -70,6 +70,13 @@ struct ContactOptions {
     // ... for this long (s): a sitting is a state, not the instant of a landing or a push-off
     // (the centre of mass passes behind the feet for a frame or two there).
     double seatedForS = 0.1;
+    // Kneeling: each knee is a contact point too (shank frame, from the knee joint: the front of
+    // the knee below the kneecap, where a kneeling body rests on the floor). A knee qualifies
+    // within heightM of the lowest point of the feet and knees while every foot point is more
+    // than heightM above that: the feet carry the body whenever they can (on one knee, the
+    // front foot flat on the floor does). Standing, walking or squatting, the knees are far
+    // above the feet.
+    Vec3d kneeFrontM = Vec3d(0, -0.04, 0.05);
     // What the pelvis accelerometer allows the contacts: the root's velocity from the held
     // point may differ from the one the accelerometer predicts (the previous frame's plus the
     // measured acceleration) by this much in one frame (m/s); beyond it the rest of the step is
@@ -143,7 +150,7 @@ public:
     const Vec3d& rootM() const { return root_; }
     const Vec3d& rootVelocityMps() const { return velocity_; }
     ContactPhase phase() const { return phase_; }
-    // 0-5 as in FootState, 6 the seat, -1 in flight.
+    // 0-5 as in FootState, 6 the seat, 7 and 8 the left and right knee, -1 in flight.
     int contactPoint() const { return point_; }
     int stanceChanges() const { return stanceChanges_; }
 
@@ -154,11 +161,13 @@ private:
     // its velocity about it; seat and seatVelocity: the seat point relative to the root.
     Vec3d stanceStep(const Pose& pose, const FootState& feet, double minY,
                      const FootSensorMotion* footSensors, double dtS, const Vec3d& comOffset,
-                     const Vec3d& comRate, const Vec3d& seat, const Vec3d& seatVelocity);
-    // A sitting posture with the body off its feet, in which the seat may carry it
-    // (ContactOptions::seatedThighDeg, offFeetM): feet relative to the root, minY the lowest of
-    // them, com the centre of mass from the root and its velocity about the root.
-    bool seated(const Pose& pose, const std::array<Vec3d, 6>& feet, double minY, const Vec3d& com,
+                     const Vec3d& comRate, const Vec3d& seat, const Vec3d& seatVelocity,
+                     const std::array<Vec3d, 2>& knees);
+    // A sitting posture with the body off its feet and knees, in which the seat may carry it
+    // (ContactOptions::seatedThighDeg, offFeetM): the feet's and knees' points relative to the
+    // root, minY the lowest of them, com the centre of mass from the root and its velocity
+    // about the root.
+    bool seated(const Pose& pose, const std::array<Vec3d, 8>& points, double minY, const Vec3d& com,
                 const Vec3d& comVelocityAboutRoot) const;
     // Foot f, held, slides beyond its dead reckoning's slip span (ContactOptions::
     // slideVerticalMps, slideBodyMps).
@@ -188,8 +197,9 @@ private:
     // The feet's sensors relative to the root at the latest frame, when the feet were given.
     std::array<Vec3d, 2> footSensorRelM_{Vec3d::Zero(), Vec3d::Zero()};
     bool footSensorsKnown_ = false;
-    // The seat relative to the root at the latest frame: its velocity.
+    // The seat and the knees relative to the root at the latest frame: their velocities.
     Vec3d seatRelM_ = Vec3d::Zero();
+    std::array<Vec3d, 2> kneeRelM_{Vec3d::Zero(), Vec3d::Zero()};
     double offFeetS_ = 0;  // how long the body has been off its feet in a sitting posture
     // The centre of mass at the end of the latest frames in stance (world) and their durations,
     // a ring (the newest at comHistoryHead_): the take-off's horizontal velocity.

@@ -2,7 +2,9 @@
 // drift, and a jump has a flight phase that ends on the floor.
 #include "fusion/body/root_tracker.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <optional>
 #include <vector>
@@ -466,6 +468,78 @@ TEST(RootTracker, ACrouchOverTheFeetIsNotASeat) {
         EXPECT_NE(s.rootTracker().phase(), ContactPhase::Seated) << "frame " << k;
         EXPECT_NEAR(lowestFootPoint(s), 0, 1e-9) << "frame " << k;
     }
+}
+
+// Kneeling upright on both knees: thighs vertical, the trunk leaning leanDeg at the lumbar
+// joint, the knees bent kneeDeg (past 90: the lower legs rise behind), the feet at right angles
+// to the lower legs.
+Pose kneelPose(double kneeDeg, double leanDeg) {
+    Pose p;
+    p.qLocal[idx(S::L5)] = Quatd(Eigen::AngleAxisd(leanDeg * kDeg, Vec3d::UnitX()));
+    for (S c : {S::LCalf, S::RCalf}) {
+        p.qLocal[idx(c)] = Quatd(Eigen::AngleAxisd(kneeDeg * kDeg, Vec3d::UnitX()));
+    }
+    return p;
+}
+
+double kneeContactY(const BodySolver& s, S calf) {
+    return pointOnSegment(s.pose(), idx(calf), ContactOptions{}.kneeFrontM).y();
+}
+
+TEST(RootTracker, KneelingWithTheFeetUpTheKneesCarryTheBody) {
+    // On both knees with the lower legs raised behind (the knees bent 115-135 deg, the feet in
+    // the air), the trunk leaning forward and back: the knees stay on the floor and the root
+    // keeps its height over them. Held on the lowest foot point, as before the knees were
+    // contacts, the root sank until a foot touched the floor: 5-21 cm too low.
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    for (int k = 0; k < 20; ++k) {
+        s.solve(frameOf(kneelPose(125, 0)), 0.01);
+    }
+    const int held = s.rootTracker().contactPoint();
+    EXPECT_TRUE(held == 7 || held == 8) << held;
+    const Vec3d start =
+        pointOnSegment(s.pose(), idx(held == 7 ? S::LCalf : S::RCalf), ContactOptions{}.kneeFrontM);
+    EXPECT_NEAR(start.y(), 0, 1e-9);
+    double lowestFoot = 1e9;
+    double highestFoot = -1e9;
+    for (int k = 1; k <= 100; ++k) {
+        const double u = std::sin(2 * std::numbers::pi * k / 100);
+        s.solve(frameOf(kneelPose(125 + 10 * u, 25 * u)), 0.01);
+        EXPECT_NEAR(kneeContactY(s, S::LCalf), 0, 1e-9) << "frame " << k;
+        EXPECT_NEAR(kneeContactY(s, S::RCalf), 0, 1e-9) << "frame " << k;
+        const Vec3d knee = pointOnSegment(s.pose(), idx(held == 7 ? S::LCalf : S::RCalf),
+                                          ContactOptions{}.kneeFrontM);
+        EXPECT_LT((knee - start).norm(), 1e-9) << "frame " << k;
+        lowestFoot = std::min(lowestFoot, lowestFootPoint(s));
+        highestFoot = std::max(highestFoot, lowestFootPoint(s));
+    }
+    // The feet in the air all along: never near enough the floor to carry the body.
+    EXPECT_GT(lowestFoot, ContactOptions{}.heightM);
+    std::printf("lowest foot point %.3f-%.3f m above the floor\n", lowestFoot, highestFoot);
+}
+
+TEST(RootTracker, OnOneKneeTheFlatFootCarriesTheBody) {
+    // A half-kneel (cmu_131_01 goes down on its left knee): the right foot flat in front, the
+    // left knee just above the floor behind. The knee is no lower than the foot's sole, so the
+    // foot carries the body, as it did before the knees were contacts.
+    const Dimensions d = dims();
+    BodySolver s = makeSolver(d);
+    Pose p;
+    p.qLocal[idx(S::LCalf)] = Quatd(Eigen::AngleAxisd(90 * kDeg, Vec3d::UnitX()));
+    p.qLocal[idx(S::LHindfoot)] = Quatd(Eigen::AngleAxisd(80 * kDeg, Vec3d::UnitX()));
+    p.qLocal[idx(S::RThigh)] = Quatd(Eigen::AngleAxisd(-90 * kDeg, Vec3d::UnitX()));
+    p.qLocal[idx(S::RCalf)] = Quatd(Eigen::AngleAxisd(90 * kDeg, Vec3d::UnitX()));
+    for (int k = 0; k < 30; ++k) {
+        s.solve(frameOf(p), 0.01);
+        EXPECT_GE(s.rootTracker().contactPoint(), 3) << "frame " << k;
+        EXPECT_LE(s.rootTracker().contactPoint(), 5) << "frame " << k;
+    }
+    EXPECT_NEAR(lowestFootPoint(s), 0, 1e-9);
+    const double knee = kneeContactY(s, S::LCalf);
+    EXPECT_GT(knee, 0.0);
+    EXPECT_LT(knee, ContactOptions{}.heightM);
+    std::printf("the knee %.4f m above the floor\n", knee);
 }
 
 TEST(RootTracker, AJumpFliesAndLandsOnTheFloor) {
